@@ -1,0 +1,372 @@
+//! Reading and writing point clouds.
+//!
+//! | format | read | write | contents |
+//! |---|---|---|---|
+//! | PLY (`.ply`) | ASCII, binary little and big endian ([ply-rs-bw]) | ASCII, binary | `vertex` element: `x y z` (any scalar type), normals as `nx ny nz` or `normal_x normal_y normal_z` |
+//! | XYZ (`.xyz`), PWN (`.pwn`) | yes | — | one point a line: `x y z` or `x y z nx ny nz` |
+//! | OFF (`.off`) | yes | — | vertices (`OFF`, `NOFF` with normals, `COFF`…); faces ignored |
+//! | OBJ (`.obj`) | yes | — | `v` lines; `vn` lines paired by index or through `f v//vn` references |
+//!
+//! The format is chosen from the extension ([`CloudFormat::from_path`]) unless given.
+//! Every malformed file gives a [`LoadError`] that names the file and the line or element;
+//! no input makes a reader panic, and no reader allocates more than the file's size can justify
+//! (a header that claims more elements than the file has bytes for is rejected up front).
+//!
+//! [ply-rs-bw]: https://crates.io/crates/ply-rs-bw
+
+mod obj;
+mod off;
+mod ply;
+mod text;
+mod xyz;
+
+use std::fmt;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::str::FromStr;
+
+use crate::core::cloud::{CloudError, PointCloud};
+
+pub use ply::PlyEncoding;
+
+/// Point-cloud file formats understood by [`read_cloud`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum CloudFormat {
+    /// Stanford PLY, ASCII or binary.
+    Ply,
+    /// Whitespace-separated `x y z [nx ny nz]` lines.
+    Xyz,
+    /// Points with normals, `x y z nx ny nz` lines (CGAL's `.pwn`); read like [`CloudFormat::Xyz`].
+    Pwn,
+    /// Object File Format; vertices only.
+    Off,
+    /// Wavefront OBJ; `v` and `vn` lines.
+    Obj,
+}
+
+impl CloudFormat {
+    /// Every format, in a stable order.
+    pub const ALL: [CloudFormat; 5] = [Self::Ply, Self::Xyz, Self::Pwn, Self::Off, Self::Obj];
+
+    /// The lower-case name, which is also the usual file extension.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Ply => "ply",
+            Self::Xyz => "xyz",
+            Self::Pwn => "pwn",
+            Self::Off => "off",
+            Self::Obj => "obj",
+        }
+    }
+
+    /// The format named by a path's extension (case-insensitive), if any.
+    pub fn from_path(path: &Path) -> Option<Self> {
+        path.extension()?.to_str()?.parse().ok()
+    }
+}
+
+impl fmt::Display for CloudFormat {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// A format name that is not one of [`CloudFormat::ALL`].
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("unknown point-cloud format {0:?} (expected ply, xyz, pwn, off or obj)")]
+pub struct UnknownFormat(pub String);
+
+impl FromStr for CloudFormat {
+    type Err = UnknownFormat;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        Self::ALL
+            .into_iter()
+            .find(|f| f.name().eq_ignore_ascii_case(s))
+            .ok_or_else(|| UnknownFormat(s.to_owned()))
+    }
+}
+
+/// Where in a file a problem was found.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Location {
+    /// A 1-based line number (text formats, ASCII PLY).
+    Line(usize),
+    /// A 0-based element index within a named PLY element (binary PLY).
+    Element {
+        /// The element's name, e.g. `vertex`.
+        name: String,
+        /// Its index.
+        index: usize,
+    },
+}
+
+impl fmt::Display for Location {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::Line(line) => write!(f, "line {line}"),
+            Self::Element { name, index } => write!(f, "{name} {index}"),
+        }
+    }
+}
+
+/// What is wrong with a point-cloud file. Wrapped in a [`LoadError`] naming the file.
+#[derive(Debug, thiserror::Error)]
+pub enum LoadErrorKind {
+    /// The file could not be read.
+    #[error("cannot read: {0}")]
+    Io(#[from] std::io::Error),
+    /// No format was given and the extension names none.
+    #[error("cannot tell the format from the extension {extension:?}; name one of ply, xyz, pwn, off, obj")]
+    UnknownFormat {
+        /// The extension found, if any.
+        extension: Option<String>,
+    },
+    /// The file holds no points.
+    #[error("the file holds no points")]
+    Empty,
+    /// A line of a text format is not valid UTF-8 text (binary garbage).
+    #[error("line {line}: not text (invalid UTF-8)")]
+    NotText {
+        /// 1-based line number.
+        line: usize,
+    },
+    /// Something that does not parse.
+    #[error("{location}: {message}")]
+    Syntax {
+        /// Where.
+        location: Location,
+        /// What was expected.
+        message: String,
+    },
+    /// A text line with the wrong number of values.
+    #[error("line {line}: expected {expected} numbers, found {found}")]
+    ColumnCount {
+        /// 1-based line number.
+        line: usize,
+        /// What the format (or the file's first line) requires, e.g. `"3 or 6"`.
+        expected: String,
+        /// How many were there.
+        found: usize,
+    },
+    /// A NaN or infinite coordinate.
+    #[error("{location}: {what} {value} is not finite")]
+    NonFinite {
+        /// Where.
+        location: Location,
+        /// `"coordinate"` or `"normal component"`.
+        what: &'static str,
+        /// The value read.
+        value: f64,
+    },
+    /// A coordinate beyond ±[`MAX_ABS_COORDINATE`](crate::core::cloud::MAX_ABS_COORDINATE).
+    #[error("{location}: coordinate {value:e} is out of range (limit ±{limit:e})")]
+    OutOfRange {
+        /// Where.
+        location: Location,
+        /// The value read.
+        value: f64,
+        /// The limit.
+        limit: f32,
+    },
+    /// A header declares more elements than the file has bytes for.
+    #[error("the header declares {declared} {element} elements, but the {payload_bytes} bytes after it can hold at most {max}")]
+    CountTooLarge {
+        /// The element, e.g. `vertex`.
+        element: String,
+        /// Declared count.
+        declared: u64,
+        /// Bytes available for the payload.
+        payload_bytes: u64,
+        /// Largest count those bytes could hold.
+        max: u64,
+    },
+    /// The file ends before the declared number of elements.
+    #[error("the file ends before its {declared} declared {element} elements are complete{}", found_suffix(*.found))]
+    Truncated {
+        /// The element, e.g. `vertex`.
+        element: String,
+        /// Declared count.
+        declared: u64,
+        /// Complete elements present, when known.
+        found: Option<u64>,
+    },
+    /// A PLY structure problem reported by the PLY parser.
+    #[error("PLY: {message}")]
+    Ply {
+        /// 1-based line of the problem when the parser knows it.
+        line: Option<usize>,
+        /// The parser's message.
+        message: String,
+    },
+    /// Something required is missing (a PLY vertex element, an `x` property…).
+    #[error("{0}")]
+    Missing(String),
+    /// A valid file using a feature this reader does not support.
+    #[error("unsupported: {0}")]
+    Unsupported(String),
+    /// An OBJ face refers to a vertex or normal that does not exist.
+    #[error("line {line}: {what} index {index} is out of range (1..={count})")]
+    BadIndex {
+        /// 1-based line number.
+        line: usize,
+        /// `"vertex"` or `"normal"`.
+        what: &'static str,
+        /// The index as written.
+        index: i64,
+        /// How many exist at that point.
+        count: usize,
+    },
+    /// The arrays read do not form a valid cloud.
+    #[error(transparent)]
+    Cloud(#[from] CloudError),
+}
+
+fn found_suffix(found: Option<u64>) -> String {
+    found.map_or_else(String::new, |n| format!(" (found {n})"))
+}
+
+/// A point-cloud file that could not be read, with the file named.
+#[derive(Debug, thiserror::Error)]
+#[error("{source_name}: {kind}")]
+pub struct LoadError {
+    /// The file (or the name given for in-memory data).
+    pub source_name: String,
+    /// What is wrong.
+    pub kind: LoadErrorKind,
+}
+
+/// A point cloud that could not be written.
+#[derive(Debug, thiserror::Error)]
+#[error("{path}: cannot write: {source}")]
+pub struct SaveError {
+    /// The file.
+    pub path: PathBuf,
+    /// The underlying I/O error.
+    pub source: std::io::Error,
+}
+
+/// Reads a point cloud from `path`, in `format` or the format its extension names.
+pub fn read_cloud(path: &Path, format: Option<CloudFormat>) -> Result<PointCloud, LoadError> {
+    let source_name = path.display().to_string();
+    let err = |kind| LoadError {
+        source_name: source_name.clone(),
+        kind,
+    };
+    let format = match format.or_else(|| CloudFormat::from_path(path)) {
+        Some(f) => f,
+        None => {
+            return Err(err(LoadErrorKind::UnknownFormat {
+                extension: path
+                    .extension()
+                    .map(|e| e.to_string_lossy().into_owned()),
+            }));
+        }
+    };
+    let bytes = std::fs::read(path).map_err(|e| err(LoadErrorKind::Io(e)))?;
+    parse_cloud(&bytes, format).map_err(err)
+}
+
+/// Reads a point cloud from bytes in memory; `source_name` names it in errors.
+pub fn read_cloud_from_bytes(
+    bytes: &[u8],
+    format: CloudFormat,
+    source_name: &str,
+) -> Result<PointCloud, LoadError> {
+    parse_cloud(bytes, format).map_err(|kind| LoadError {
+        source_name: source_name.to_owned(),
+        kind,
+    })
+}
+
+fn parse_cloud(bytes: &[u8], format: CloudFormat) -> Result<PointCloud, LoadErrorKind> {
+    let cloud = match format {
+        CloudFormat::Ply => ply::read(bytes)?,
+        CloudFormat::Xyz | CloudFormat::Pwn => xyz::read(bytes)?,
+        CloudFormat::Off => off::read(bytes)?,
+        CloudFormat::Obj => obj::read(bytes)?,
+    };
+    if cloud.is_empty() {
+        return Err(LoadErrorKind::Empty);
+    }
+    Ok(cloud)
+}
+
+/// Writes `cloud` as PLY (positions as `float x y z`, normals as `float nx ny nz` when present).
+pub fn write_ply(path: &Path, cloud: &PointCloud, encoding: PlyEncoding) -> Result<(), SaveError> {
+    let err = |source| SaveError {
+        path: path.to_owned(),
+        source,
+    };
+    let file = std::fs::File::create(path).map_err(err)?;
+    let mut out = std::io::BufWriter::new(file);
+    write_ply_to(&mut out, cloud, encoding).map_err(err)?;
+    out.flush().map_err(err)
+}
+
+/// Writes `cloud` as PLY to any writer.
+pub fn write_ply_to<W: Write>(
+    out: &mut W,
+    cloud: &PointCloud,
+    encoding: PlyEncoding,
+) -> std::io::Result<()> {
+    ply::write(out, cloud, encoding)
+}
+
+/// Converts a value read from a file to an `f32` coordinate, checking it.
+pub(crate) fn coordinate(
+    value: f64,
+    what: &'static str,
+    location: impl FnOnce() -> Location,
+) -> Result<f32, LoadErrorKind> {
+    use crate::core::cloud::MAX_ABS_COORDINATE;
+    if !value.is_finite() {
+        return Err(LoadErrorKind::NonFinite {
+            location: location(),
+            what,
+            value,
+        });
+    }
+    if value.abs() > f64::from(MAX_ABS_COORDINATE) {
+        return Err(LoadErrorKind::OutOfRange {
+            location: location(),
+            value,
+            limit: MAX_ABS_COORDINATE,
+        });
+    }
+    Ok(value as f32)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn format_from_extension_and_name() {
+        assert_eq!(
+            CloudFormat::from_path(Path::new("a/b.PLY")),
+            Some(CloudFormat::Ply)
+        );
+        assert_eq!(
+            CloudFormat::from_path(Path::new("x.pwn")),
+            Some(CloudFormat::Pwn)
+        );
+        assert_eq!(CloudFormat::from_path(Path::new("x.txt")), None);
+        assert_eq!(CloudFormat::from_path(Path::new("noext")), None);
+        assert_eq!("OBJ".parse::<CloudFormat>(), Ok(CloudFormat::Obj));
+        assert!("las".parse::<CloudFormat>().is_err());
+    }
+
+    #[test]
+    fn unknown_extension_is_a_typed_error() {
+        let e = read_cloud(Path::new("cloud.las"), None).unwrap_err();
+        assert!(matches!(e.kind, LoadErrorKind::UnknownFormat { .. }));
+        assert!(e.to_string().starts_with("cloud.las: "));
+    }
+
+    #[test]
+    fn missing_file_is_io_error() {
+        let e = read_cloud(Path::new("/definitely/not/here.xyz"), None).unwrap_err();
+        assert!(matches!(e.kind, LoadErrorKind::Io(_)));
+    }
+}

@@ -1,0 +1,91 @@
+//! OFF (Object File Format): the vertex list; faces and edges are ignored.
+//!
+//! Accepts the keyword variants `OFF`, `NOFF` (normals after the position), `COFF`, `CNOFF`,
+//! `STOFF`… (extra per-vertex values are ignored), counts on the keyword line or the next one,
+//! and `#` comments. Binary OFF and 4-D / n-D OFF are reported as unsupported.
+
+use super::LoadErrorKind;
+use super::text::{TextLines, normal, parse_count, parse_numbers, position, quote};
+use crate::core::cloud::PointCloud;
+
+/// Fewest bytes one ASCII vertex line can take: `0 0 0\n`.
+const MIN_VERTEX_LINE_BYTES: u64 = 6;
+
+/// A declared count up to this many times what the bytes can hold is read and reported as a
+/// truncated file; beyond it, the header is reported as corrupt without reading.
+pub(super) const TRUNCATION_FACTOR: u64 = 2;
+
+pub(super) fn read(bytes: &[u8]) -> Result<PointCloud, LoadErrorKind> {
+    let mut lines = TextLines::new(bytes);
+    let Some(first) = lines.next_content() else {
+        return Err(LoadErrorKind::Empty);
+    };
+    let (line, header) = first?;
+    let mut tokens = header.split_ascii_whitespace();
+    let keyword = tokens.next().unwrap_or("");
+    let Some(prefix) = keyword.strip_suffix("OFF") else {
+        return Err(LoadErrorKind::Syntax {
+            location: super::Location::Line(line),
+            message: format!("expected the OFF keyword, found {}", quote(keyword)),
+        });
+    };
+    if prefix.contains('4') || prefix.contains('n') {
+        return Err(LoadErrorKind::Unsupported(format!(
+            "{keyword}: only 3-D OFF files are read"
+        )));
+    }
+    let has_normals = prefix.contains('N');
+    let mut rest: Vec<&str> = tokens.collect();
+    if rest.first().is_some_and(|t| t.eq_ignore_ascii_case("BINARY")) {
+        return Err(LoadErrorKind::Unsupported("binary OFF".into()));
+    }
+    let mut count_line = line;
+    if rest.is_empty() {
+        let Some(next) = lines.next_content() else {
+            return Err(LoadErrorKind::Missing(
+                "the OFF header has no vertex count".into(),
+            ));
+        };
+        let (l, counts) = next?;
+        count_line = l;
+        rest = counts.split_ascii_whitespace().collect();
+    }
+    let declared = parse_count(rest.first().copied().unwrap_or(""), count_line, "vertex")?;
+    let payload_bytes = lines.remaining_bytes() as u64;
+    let max = payload_bytes / MIN_VERTEX_LINE_BYTES;
+    // A count beyond what the bytes can hold is either a truncated file (reported as such
+    // once the lines run out) or, when far beyond, a corrupt header, rejected before reading.
+    if declared > max.saturating_mul(TRUNCATION_FACTOR) {
+        return Err(LoadErrorKind::CountTooLarge {
+            element: "vertex".into(),
+            declared,
+            payload_bytes,
+            max,
+        });
+    }
+    // Bounded by the file size, whatever the header says.
+    let capacity = declared.min(max) as usize;
+    let mut positions = Vec::with_capacity(capacity);
+    let mut normals = Vec::with_capacity(if has_normals { capacity } else { 0 });
+    let expected = if has_normals { "at least 6" } else { "at least 3" };
+    while (positions.len() as u64) < declared {
+        let Some(item) = lines.next_content() else {
+            return Err(LoadErrorKind::Truncated {
+                element: "vertex".into(),
+                declared,
+                found: Some(positions.len() as u64),
+            });
+        };
+        let (line, content) = item?;
+        let tokens = content.split_ascii_whitespace();
+        if has_normals {
+            let v: [f64; 6] = parse_numbers(tokens, line, expected)?;
+            positions.push(position([v[0], v[1], v[2]], line)?);
+            normals.push(normal([v[3], v[4], v[5]], line)?);
+        } else {
+            let v: [f64; 3] = parse_numbers(tokens, line, expected)?;
+            positions.push(position(v, line)?);
+        }
+    }
+    Ok(PointCloud::new(positions, has_normals.then_some(normals))?)
+}

@@ -1,0 +1,216 @@
+//! k-nearest-neighbour search over a fixed point set ([kiddo] k-d tree), reused by every stage.
+//!
+//! [kiddo]: https://crates.io/crates/kiddo
+
+use std::num::NonZeroUsize;
+
+use glam::Vec3;
+use kiddo::{ImmutableKdTree, SquaredEuclidean};
+use rayon::prelude::*;
+
+/// Point count under which graph queries run on one thread (rayon's dispatch costs more).
+const PARALLEL_THRESHOLD: usize = 4096;
+
+/// Points per rayon task when building a graph.
+const QUERY_CHUNK: usize = 1024;
+
+/// A neighbour found by a query.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Neighbour {
+    /// Index of the point in the indexed slice.
+    pub index: u32,
+    /// Squared distance to the query point.
+    pub dist2: f32,
+}
+
+/// A k-d tree over a slice of points.
+pub struct KnnIndex {
+    tree: Option<ImmutableKdTree<f32, 3>>,
+    len: usize,
+}
+
+impl std::fmt::Debug for KnnIndex {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("KnnIndex").field("len", &self.len).finish()
+    }
+}
+
+impl KnnIndex {
+    /// Builds the index. Positions must be finite (every [`PointCloud`](crate::core::PointCloud)
+    /// is); there must be fewer than 2^32 of them.
+    pub fn build(positions: &[Vec3]) -> Self {
+        let coords: Vec<[f32; 3]> = positions.iter().map(|p| p.to_array()).collect();
+        let tree = if coords.is_empty() {
+            None
+        } else {
+            // Construction fails only for more than u32::MAX points.
+            ImmutableKdTree::new_from_slice(&coords).ok()
+        };
+        Self {
+            tree,
+            len: positions.len(),
+        }
+    }
+
+    /// Number of indexed points.
+    pub fn len(&self) -> usize {
+        self.len
+    }
+
+    /// Whether the index is empty.
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+
+    /// The `k` points nearest `query`, nearest first (fewer if the index holds fewer).
+    pub fn nearest(&self, query: Vec3, k: usize) -> Vec<Neighbour> {
+        let (Some(tree), Some(k)) = (&self.tree, NonZeroUsize::new(k.min(self.len))) else {
+            return Vec::new();
+        };
+        tree.query(&query.to_array())
+            .nearest_n::<SquaredEuclidean<f32>>(k)
+            .execute()
+            .into_iter()
+            .map(|r| Neighbour {
+                index: r.item,
+                dist2: r.distance,
+            })
+            .collect()
+    }
+
+    /// For every point of `positions` (the slice this index was built over), its `k` nearest
+    /// *other* points, nearest first. `k` is clamped to `len - 1`. Runs in parallel.
+    pub fn knn_graph(&self, positions: &[Vec3], k: usize) -> KnnGraph {
+        let n = positions.len();
+        debug_assert_eq!(n, self.len, "knn_graph needs the indexed positions");
+        let k = k.min(n.saturating_sub(1));
+        let mut indices = vec![0u32; n * k];
+        let mut dist2 = vec![0f32; n * k];
+        if k == 0 {
+            return KnnGraph { k, indices, dist2 };
+        }
+        let fill = |(chunk, (idx_out, d_out)): (usize, (&mut [u32], &mut [f32]))| {
+            let first = chunk * QUERY_CHUNK;
+            for (row, (idx_row, d_row)) in idx_out
+                .chunks_exact_mut(k)
+                .zip(d_out.chunks_exact_mut(k))
+                .enumerate()
+            {
+                let i = first + row;
+                let found = self.nearest(positions[i], k + 1);
+                // Drop the point itself; with duplicates it may not come first.
+                let own = found
+                    .iter()
+                    .position(|nb| nb.index as usize == i)
+                    .unwrap_or(found.len() - 1);
+                for (slot, nb) in found
+                    .iter()
+                    .enumerate()
+                    .filter(|&(j, _)| j != own)
+                    .map(|(_, nb)| nb)
+                    .enumerate()
+                {
+                    idx_row[slot] = nb.index;
+                    d_row[slot] = nb.dist2;
+                }
+            }
+        };
+        let chunk = QUERY_CHUNK * k;
+        if n < PARALLEL_THRESHOLD {
+            indices
+                .chunks_mut(chunk)
+                .zip(dist2.chunks_mut(chunk))
+                .enumerate()
+                .for_each(fill);
+        } else {
+            indices
+                .par_chunks_mut(chunk)
+                .zip(dist2.par_chunks_mut(chunk))
+                .enumerate()
+                .for_each(fill);
+        }
+        KnnGraph { k, indices, dist2 }
+    }
+}
+
+/// Each point's `k` nearest other points (row-major `n × k`), nearest first.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct KnnGraph {
+    k: usize,
+    indices: Vec<u32>,
+    dist2: Vec<f32>,
+}
+
+impl KnnGraph {
+    /// Neighbours per point.
+    pub fn k(&self) -> usize {
+        self.k
+    }
+
+    /// Number of points.
+    pub fn len(&self) -> usize {
+        self.indices.len().checked_div(self.k).unwrap_or(0)
+    }
+
+    /// Whether the graph has no rows.
+    pub fn is_empty(&self) -> bool {
+        self.indices.is_empty()
+    }
+
+    /// Neighbour indices of point `i`, nearest first.
+    pub fn neighbours(&self, i: usize) -> &[u32] {
+        &self.indices[i * self.k..(i + 1) * self.k]
+    }
+
+    /// Squared distances of point `i`'s neighbours, in the same order.
+    pub fn neighbour_dist2(&self, i: usize) -> &[f32] {
+        &self.dist2[i * self.k..(i + 1) * self.k]
+    }
+
+    /// All squared distances, row-major.
+    pub fn dist2(&self) -> &[f32] {
+        &self.dist2
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn graph_excludes_self_and_matches_brute_force() {
+        let pts: Vec<Vec3> = (0..200)
+            .map(|i| {
+                let t = i as f32 * 0.37;
+                Vec3::new(t.sin() * 3.0, (t * 1.7).cos(), (i % 13) as f32 * 0.1)
+            })
+            .collect();
+        let index = KnnIndex::build(&pts);
+        let g = index.knn_graph(&pts, 5);
+        assert_eq!((g.len(), g.k()), (200, 5));
+        for i in 0..pts.len() {
+            let mut brute: Vec<(f32, usize)> = (0..pts.len())
+                .filter(|&j| j != i)
+                .map(|j| (pts[i].distance_squared(pts[j]), j))
+                .collect();
+            brute.sort_by(|a, b| a.0.total_cmp(&b.0));
+            assert!(!g.neighbours(i).contains(&(i as u32)));
+            for (slot, &d) in g.neighbour_dist2(i).iter().enumerate() {
+                assert!((d - brute[slot].0).abs() <= 1e-5 * (1.0 + d));
+            }
+        }
+    }
+
+    #[test]
+    fn tiny_and_duplicate_inputs() {
+        assert!(KnnIndex::build(&[]).nearest(Vec3::ZERO, 3).is_empty());
+        let one = [Vec3::ONE];
+        let g = KnnIndex::build(&one).knn_graph(&one, 8);
+        assert_eq!(g.k(), 0);
+        let dup = [Vec3::ZERO, Vec3::ZERO, Vec3::ZERO, Vec3::X];
+        let g = KnnIndex::build(&dup).knn_graph(&dup, 2);
+        for i in 0..4 {
+            assert!(!g.neighbours(i).contains(&(i as u32)));
+        }
+    }
+}

@@ -1,0 +1,14 @@
+//! The pure core: every algorithm on plain slices, with no Bevy import.
+//!
+//! Data flows one way (see `DESIGN.md`):
+//! file ([`io`]) → [`cloud::PointCloud`] → [`normals`] (PCA over [`knn`] neighbourhoods,
+//! consistently oriented) → simplification → spring network → solver → transfer.
+//! [`shapes`] builds procedural test surfaces (sphere, hat, sheets).
+
+pub mod cloud;
+pub mod io;
+pub mod knn;
+pub mod normals;
+pub mod shapes;
+
+pub use cloud::{Aabb, CloudError, PointCloud};

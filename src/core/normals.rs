@@ -1,0 +1,401 @@
+//! Normal estimation (PCA over k nearest neighbours) and consistent orientation.
+//!
+//! * [`pca_normals`]: for each point, the eigenvector of the smallest eigenvalue of the
+//!   covariance of the point and its k nearest neighbours (Hoppe et al. '92; the paper's §3).
+//! * [`orient_normals`]: PCA gives a direction without a sign. Signs are made consistent by
+//!   propagating from point to point over the symmetrised k-NN graph in order of decreasing
+//!   confidence |nᵢ·nⱼ| (Prim's algorithm on the Riemannian graph with cost 1 − |nᵢ·nⱼ|, as in
+//!   Hoppe '92), one traversal per connected component. Each component is then turned
+//!   *outward*: the sign of Σ nᵢ·(pᵢ − c) over the component (c its centroid), which for a
+//!   closed surface is proportional to its enclosed volume and is positive for caps of a sphere
+//!   too. A flat component (that sum ≈ 0) is turned so its mean normal points along the positive
+//!   direction of its dominant axis.
+//! * [`ensure_normals`]: keeps a cloud's own normals when they are usable, estimates otherwise.
+
+use std::collections::BinaryHeap;
+
+use glam::{DMat3, DVec3, Vec3};
+use rayon::prelude::*;
+
+use crate::core::cloud::PointCloud;
+use crate::core::knn::{KnnGraph, KnnIndex};
+
+/// Default neighbourhood size for PCA normals (the paper's k lies in 10–20 for simplification;
+/// 10 neighbours give stable normals on evenly sampled surfaces at the lowest cost).
+pub const DEFAULT_NORMAL_K: usize = 10;
+
+/// Fewest neighbours a plane fit can use.
+pub const MIN_NORMAL_K: usize = 3;
+
+/// |Σ n·(p − c)| below this fraction of Σ |p − c| marks a component as flat (no inside).
+const FLAT_TOLERANCE: f64 = 1.0e-3;
+
+/// Relative size under which a covariance matrix counts as zero or isotropic.
+const DEGENERATE_EPS: f64 = 1.0e-12;
+
+/// Points per rayon task in [`pca_normals`].
+const PCA_CHUNK: usize = 2048;
+
+/// Why normals could not be estimated.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum NormalsError {
+    /// A plane fit needs at least [`MIN_NORMAL_K`] + 1 points.
+    #[error("normal estimation needs at least {needed} points, the cloud has {found}")]
+    TooFewPoints {
+        /// Points needed.
+        needed: usize,
+        /// Points in the cloud.
+        found: usize,
+    },
+    /// `k` below [`MIN_NORMAL_K`].
+    #[error("normal estimation needs k ≥ {MIN_NORMAL_K} neighbours, got {0}")]
+    KTooSmall(usize),
+    /// Orientation packs point indices into 31 bits.
+    #[error("normal orientation supports at most 2^31 - 1 points, the cloud has {0}")]
+    TooManyPoints(usize),
+}
+
+/// Where a cloud's normals came from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum NormalSource {
+    /// The file's own normals (normalised).
+    File,
+    /// Estimated by PCA and oriented.
+    Estimated(OrientationReport),
+}
+
+/// What [`orient_normals`] did.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct OrientationReport {
+    /// Connected components of the symmetrised k-NN graph.
+    pub components: usize,
+    /// Points whose normal ended up with the opposite sign from PCA's.
+    pub flipped: usize,
+    /// Points whose neighbourhood had no plane (all coincident or isotropic); they got an
+    /// arbitrary unit normal before orientation.
+    pub degenerate: usize,
+}
+
+/// Unit PCA normals (unoriented) from each point's k-NN neighbourhood, in parallel.
+///
+/// Returns the normals and how many neighbourhoods were degenerate (all points coincident, or
+/// spread equally in every direction): those get the +Z axis so nothing is ever NaN.
+pub fn pca_normals(positions: &[Vec3], graph: &KnnGraph) -> (Vec<Vec3>, usize) {
+    let mut normals = vec![Vec3::ZERO; positions.len()];
+    let degenerate: usize = normals
+        .par_chunks_mut(PCA_CHUNK)
+        .enumerate()
+        .map(|(chunk, out)| {
+            let mut bad = 0;
+            for (row, n) in out.iter_mut().enumerate() {
+                let i = chunk * PCA_CHUNK + row;
+                *n = match plane_normal(positions[i], graph.neighbours(i), positions) {
+                    Some(v) => v,
+                    None => {
+                        bad += 1;
+                        Vec3::Z
+                    }
+                };
+            }
+            bad
+        })
+        .sum();
+    (normals, degenerate)
+}
+
+/// Normal of the least-squares plane through `centre` and its neighbours, if there is one.
+fn plane_normal(centre: Vec3, neighbours: &[u32], positions: &[Vec3]) -> Option<Vec3> {
+    // Work relative to the centre point in f64: no cancellation for far-off clouds.
+    let rel = |j: u32| (positions[j as usize] - centre).as_dvec3();
+    let count = (neighbours.len() + 1) as f64;
+    let mean = neighbours.iter().map(|&j| rel(j)).sum::<DVec3>() / count;
+    let mut c = [[0.0f64; 3]; 3];
+    let mut add = |d: DVec3| {
+        let d = d.to_array();
+        for r in 0..3 {
+            for s in r..3 {
+                c[r][s] += d[r] * d[s];
+            }
+        }
+    };
+    add(-mean);
+    for &j in neighbours {
+        add(rel(j) - mean);
+    }
+    let m = DMat3::from_cols_array_2d(&[
+        [c[0][0], c[0][1], c[0][2]],
+        [c[0][1], c[1][1], c[1][2]],
+        [c[0][2], c[1][2], c[2][2]],
+    ]);
+    smallest_eigenvector(m).map(|v| v.as_vec3())
+}
+
+/// Unit eigenvector of the smallest eigenvalue of a symmetric positive semi-definite 3×3
+/// matrix, or `None` when there is no preferred direction (zero or isotropic matrix).
+///
+/// Eigenvalues by the closed-form trigonometric method; the eigenvector as the largest cross
+/// product of two rows of `A − λI`. When the smallest eigenvalue is double (collinear points)
+/// any unit vector perpendicular to the dominant direction is returned.
+pub fn smallest_eigenvector(a: DMat3) -> Option<DVec3> {
+    let scale = a.to_cols_array().iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    if !scale.is_finite() || scale <= 0.0 {
+        return None;
+    }
+    let a = a * (1.0 / scale);
+    let (a00, a11, a22) = (a.x_axis.x, a.y_axis.y, a.z_axis.z);
+    let (a01, a02, a12) = (a.y_axis.x, a.z_axis.x, a.z_axis.y);
+    let q = (a00 + a11 + a22) / 3.0;
+    let p1 = a01 * a01 + a02 * a02 + a12 * a12;
+    let p2 = (a00 - q).powi(2) + (a11 - q).powi(2) + (a22 - q).powi(2) + 2.0 * p1;
+    let p = (p2 / 6.0).sqrt();
+    if p <= DEGENERATE_EPS {
+        return None;
+    }
+    let b = (a - DMat3::from_diagonal(DVec3::splat(q))) * (1.0 / p);
+    let r = (b.determinant() / 2.0).clamp(-1.0, 1.0);
+    let phi = r.acos() / 3.0;
+    let largest = q + 2.0 * p * phi.cos();
+    let smallest = q + 2.0 * p * (phi + 2.0 * std::f64::consts::FRAC_PI_3).cos();
+    if let Some(v) = null_vector(a, smallest) {
+        return Some(v);
+    }
+    // Double smallest eigenvalue: the largest one is simple; its eigenvector is the line.
+    null_vector(a, largest).map(|line| line.any_orthonormal_vector())
+}
+
+/// Unit vector spanning the null space of `A − λI` when that space is one-dimensional.
+fn null_vector(a: DMat3, lambda: f64) -> Option<DVec3> {
+    let m = a - DMat3::from_diagonal(DVec3::splat(lambda));
+    // Rows of a symmetric matrix are its columns.
+    let (r0, r1, r2) = (m.x_axis, m.y_axis, m.z_axis);
+    let candidates = [r0.cross(r1), r0.cross(r2), r1.cross(r2)];
+    let best = candidates
+        .into_iter()
+        .max_by(|u, v| u.length_squared().total_cmp(&v.length_squared()))?;
+    let len2 = best.length_squared();
+    (len2 > DEGENERATE_EPS).then(|| best / len2.sqrt())
+}
+
+/// Makes the signs of `normals` consistent across each connected component of the symmetrised
+/// k-NN graph and turns each component outward (see the module docs).
+pub fn orient_normals(
+    positions: &[Vec3],
+    normals: &mut [Vec3],
+    graph: &KnnGraph,
+) -> Result<OrientationReport, NormalsError> {
+    let n = positions.len();
+    if n >= (1 << 31) {
+        return Err(NormalsError::TooManyPoints(n));
+    }
+    let reverse = ReverseEdges::build(graph);
+    let original: Vec<Vec3> = normals.to_vec();
+    let mut component = vec![u32::MAX; n];
+    let mut heap: BinaryHeap<u64> = BinaryHeap::new();
+    let mut components = 0u32;
+    for seed in 0..n {
+        if component[seed] != u32::MAX {
+            continue;
+        }
+        let id = components;
+        components += 1;
+        heap.push(pack(1.0, seed as u32, false));
+        while let Some(key) = heap.pop() {
+            let (i, flip) = unpack(key);
+            let i = i as usize;
+            if component[i] != u32::MAX {
+                continue;
+            }
+            component[i] = id;
+            if flip {
+                normals[i] = -normals[i];
+            }
+            let ni = normals[i];
+            for &j in graph.neighbours(i).iter().chain(reverse.of(i)) {
+                if component[j as usize] == u32::MAX {
+                    let dot = ni.dot(normals[j as usize]);
+                    heap.push(pack(dot.abs(), j, dot < 0.0));
+                }
+            }
+        }
+    }
+    turn_outward(positions, normals, &component, components as usize);
+    let flipped = normals
+        .iter()
+        .zip(&original)
+        .filter(|(a, b)| a.dot(**b) < 0.0)
+        .count();
+    Ok(OrientationReport {
+        components: components as usize,
+        flipped,
+        degenerate: 0,
+    })
+}
+
+/// Heap key: confidence in the high 32 bits (non-negative floats order like their bits), then
+/// the point index and the flip flag. Ties break towards higher indices, deterministically.
+fn pack(confidence: f32, index: u32, flip: bool) -> u64 {
+    (u64::from(confidence.clamp(0.0, 1.0).to_bits()) << 32) | (u64::from(index) << 1) | u64::from(flip)
+}
+
+fn unpack(key: u64) -> (u32, bool) {
+    (((key >> 1) & 0x7FFF_FFFF) as u32, key & 1 == 1)
+}
+
+/// Edges j → i of the k-NN graph whose reverse i → j is not already in the graph, as CSR, so
+/// that neighbours(i) ∪ reverse.of(i) is the symmetrised neighbourhood.
+struct ReverseEdges {
+    offsets: Vec<u32>,
+    targets: Vec<u32>,
+}
+
+impl ReverseEdges {
+    fn build(graph: &KnnGraph) -> Self {
+        let n = graph.len();
+        let k = graph.k();
+        // For each edge i → j: does j list i too?
+        let mutual: Vec<bool> = (0..n * k)
+            .into_par_iter()
+            .map(|e| {
+                let (i, j) = (e / k, graph.neighbours(e / k)[e % k]);
+                graph.neighbours(j as usize).contains(&(i as u32))
+            })
+            .collect();
+        let mut offsets = vec![0u32; n + 1];
+        for (e, _) in mutual.iter().enumerate().filter(|(_, m)| !**m) {
+            offsets[graph.neighbours(e / k)[e % k] as usize + 1] += 1;
+        }
+        for i in 0..n {
+            offsets[i + 1] += offsets[i];
+        }
+        let mut fill = offsets.clone();
+        let mut targets = vec![0u32; offsets[n] as usize];
+        for (e, _) in mutual.iter().enumerate().filter(|(_, m)| !**m) {
+            let j = graph.neighbours(e / k)[e % k] as usize;
+            targets[fill[j] as usize] = (e / k) as u32;
+            fill[j] += 1;
+        }
+        Self { offsets, targets }
+    }
+
+    fn of(&self, i: usize) -> &[u32] {
+        &self.targets[self.offsets[i] as usize..self.offsets[i + 1] as usize]
+    }
+}
+
+fn turn_outward(positions: &[Vec3], normals: &mut [Vec3], component: &[u32], count: usize) {
+    let mut centroid = vec![(DVec3::ZERO, 0usize); count];
+    for (p, &c) in positions.iter().zip(component) {
+        centroid[c as usize].0 += p.as_dvec3();
+        centroid[c as usize].1 += 1;
+    }
+    // Per component: Σ n·(p − c), Σ |p − c|, Σ n.
+    let mut sums = vec![(0.0f64, 0.0f64, DVec3::ZERO); count];
+    for ((p, n), &c) in positions.iter().zip(normals.iter()).zip(component) {
+        let (sum, size) = centroid[c as usize];
+        let d = p.as_dvec3() - sum / size as f64;
+        let s = &mut sums[c as usize];
+        s.0 += n.as_dvec3().dot(d);
+        s.1 += d.length();
+        s.2 += n.as_dvec3();
+    }
+    let flip: Vec<bool> = sums
+        .iter()
+        .map(|&(signed, spread, mean_normal)| {
+            if signed.abs() > FLAT_TOLERANCE * spread {
+                signed < 0.0
+            } else {
+                let axis = mean_normal.abs().max_position();
+                mean_normal[axis] < 0.0
+            }
+        })
+        .collect();
+    for (n, &c) in normals.iter_mut().zip(component) {
+        if flip[c as usize] {
+            *n = -*n;
+        }
+    }
+}
+
+/// Estimates consistently oriented unit normals for `positions` from `k` nearest neighbours.
+pub fn estimate_normals(
+    positions: &[Vec3],
+    k: usize,
+) -> Result<(Vec<Vec3>, OrientationReport), NormalsError> {
+    if k < MIN_NORMAL_K {
+        return Err(NormalsError::KTooSmall(k));
+    }
+    if positions.len() < MIN_NORMAL_K + 1 {
+        return Err(NormalsError::TooFewPoints {
+            needed: MIN_NORMAL_K + 1,
+            found: positions.len(),
+        });
+    }
+    let index = KnnIndex::build(positions);
+    let graph = index.knn_graph(positions, k);
+    let (mut normals, degenerate) = pca_normals(positions, &graph);
+    let mut report = orient_normals(positions, &mut normals, &graph)?;
+    report.degenerate = degenerate;
+    Ok((normals, report))
+}
+
+/// Gives `cloud` normals: its own when [usable](PointCloud::has_usable_normals) (normalised),
+/// otherwise estimated with `k` neighbours and oriented.
+pub fn ensure_normals(cloud: &mut PointCloud, k: usize) -> Result<NormalSource, NormalsError> {
+    if cloud.has_usable_normals() {
+        let normals = cloud.normals().unwrap_or_default().to_vec();
+        // Same length and finite: re-setting only normalises.
+        let _ = cloud.set_normals(normals);
+        return Ok(NormalSource::File);
+    }
+    let (normals, report) = estimate_normals(cloud.positions(), k)?;
+    let _ = cloud.set_normals(normals);
+    Ok(NormalSource::Estimated(report))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn eigenvector_of_plane_and_line() {
+        // Points spread in x and y: normal is z.
+        let plane = DMat3::from_diagonal(DVec3::new(4.0, 1.0, 1e-9));
+        let v = smallest_eigenvector(plane).unwrap();
+        assert!((v.z.abs() - 1.0).abs() < 1e-9);
+        // A rotated plane.
+        let rot = DMat3::from_rotation_y(0.7) * DMat3::from_rotation_x(-0.3);
+        let m = rot * plane * rot.transpose();
+        let v = smallest_eigenvector(m).unwrap();
+        assert!((v.dot(rot * DVec3::Z).abs() - 1.0).abs() < 1e-9);
+        // A line along x: any unit vector perpendicular to x.
+        let line = DMat3::from_diagonal(DVec3::new(3.0, 0.0, 0.0));
+        let v = smallest_eigenvector(line).unwrap();
+        assert!(v.x.abs() < 1e-12 && (v.length() - 1.0).abs() < 1e-12);
+        // Zero and isotropic: no direction.
+        assert!(smallest_eigenvector(DMat3::ZERO).is_none());
+        assert!(smallest_eigenvector(DMat3::IDENTITY).is_none());
+    }
+
+    #[test]
+    fn coincident_points_give_finite_normals() {
+        let pts = vec![Vec3::ONE; 20];
+        let (normals, report) = estimate_normals(&pts, 5).unwrap();
+        assert_eq!(report.degenerate, 20);
+        assert!(normals.iter().all(|n| n.is_finite() && (n.length() - 1.0).abs() < 1e-6));
+    }
+
+    #[test]
+    fn rejects_too_few_points_and_tiny_k() {
+        assert_eq!(
+            estimate_normals(&[Vec3::ZERO; 3], 10),
+            Err(NormalsError::TooFewPoints {
+                needed: 4,
+                found: 3
+            })
+        );
+        assert_eq!(
+            estimate_normals(&[Vec3::ZERO; 30], 2),
+            Err(NormalsError::KTooSmall(2))
+        );
+    }
+}

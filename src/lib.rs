@@ -1,0 +1,44 @@
+//! # bevy_point_springs
+//!
+//! Deformable point-sampled surfaces — raw point clouds, no mesh — driven by a mass-spring
+//! system, after Su et al., *Mass-Spring Based Point-Sampled Surface Modelling* (2007).
+//!
+//! The crate has two layers:
+//!
+//! * [`core`] — pure Rust on plain slices (glam, spade, kiddo; no Bevy): point-cloud I/O,
+//!   k-NN, PCA normals with consistent orientation, procedural test surfaces. It builds and
+//!   tests without Bevy (`--no-default-features`).
+//! * `plugin` (feature `plugin`, on by default) — the Bevy 0.19 layer: ECS components and the
+//!   fixed-tick system sets that later stages fill.
+//!
+//! Cargo features: `plugin` (default, headless Bevy), `render` (Bevy's renderer), `egui`
+//! (a bevy_egui panel), `rapier` (bevy_rapier3d contacts), `cli` (the `point-springs` tool).
+//!
+//! ```
+//! use bevy_point_springs::core::{normals, shapes};
+//!
+//! let sphere = shapes::fibonacci_sphere(1000, 1.0);
+//! let (estimated, report) = normals::estimate_normals(sphere.positions(), 10).unwrap();
+//! assert_eq!(report.components, 1);
+//! // Outward, like the exact normals.
+//! let agree = estimated.iter().zip(sphere.normals().unwrap()).all(|(a, b)| a.dot(*b) > 0.9);
+//! assert!(agree);
+//! ```
+
+#![warn(missing_docs)]
+#![forbid(unsafe_code)]
+
+pub mod core;
+
+#[cfg(feature = "plugin")]
+pub mod plugin;
+
+/// The most used types, for `use bevy_point_springs::prelude::*`.
+pub mod prelude {
+    pub use crate::core::io::{CloudFormat, LoadError, PlyEncoding, read_cloud, write_ply};
+    pub use crate::core::normals::{NormalSource, ensure_normals, estimate_normals};
+    pub use crate::core::{Aabb, PointCloud};
+
+    #[cfg(feature = "plugin")]
+    pub use crate::plugin::{DenseSurface, PointSpringsPlugin, PointSpringsSystems, SurfaceStatus};
+}
