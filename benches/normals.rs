@@ -6,7 +6,7 @@
 use std::hint::black_box;
 use std::time::Duration;
 
-use bevy_point_springs::core::knn::KnnIndex;
+use bevy_point_springs::core::knn::{KnnIndex, morton_order};
 use bevy_point_springs::core::normals::{
     DEFAULT_NORMAL_K, estimate_normals, orient_normals, pca_normals,
 };
@@ -24,6 +24,15 @@ fn normals(c: &mut Criterion) {
     group.bench_function("total (index + graph + pca + orient)", |b| {
         b.iter(|| estimate_normals(black_box(positions), DEFAULT_NORMAL_K).unwrap())
     });
+    // The stages below run as `estimate_normals` runs them: on the points in Morton order.
+    group.bench_function("stage: morton order", |b| {
+        b.iter(|| morton_order(black_box(positions)))
+    });
+    let sorted: Vec<_> = morton_order(positions)
+        .iter()
+        .map(|&i| positions[i as usize])
+        .collect();
+    let positions = &sorted[..];
     group.bench_function("stage: kd-tree build", |b| {
         b.iter(|| KnnIndex::build(black_box(positions)))
     });

@@ -39,6 +39,8 @@ pub mod prelude {
     pub use crate::core::normals::{NormalSource, ensure_normals, estimate_normals};
     pub use crate::core::{Aabb, PointCloud};
 
+    #[cfg(feature = "render")]
+    pub use crate::plugin::render::{SurfelRender, SurfelRenderPlugin};
     #[cfg(feature = "plugin")]
     pub use crate::plugin::{DenseSurface, PointSpringsPlugin, PointSpringsSystems, SurfaceStatus};
 }

@@ -6,7 +6,9 @@ use std::process::{Command, Output};
 use bevy_point_springs::core::io::read_cloud;
 
 fn asset(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("assets").join(name)
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("assets")
+        .join(name)
 }
 
 fn run(args: &[&str]) -> Output {
@@ -26,7 +28,11 @@ fn scratch(name: &str) -> PathBuf {
 fn info_json_has_the_documented_keys() {
     let path = asset("sphere926.pwn");
     let out = run(&["info", path.to_str().unwrap(), "--json"]);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(v["points"], 926);
     assert_eq!(v["has_normals"], true);
@@ -35,7 +41,10 @@ fn info_json_has_the_documented_keys() {
         let corner = v[key].as_array().unwrap();
         assert_eq!(corner.len(), 3);
         for c in corner {
-            assert!((c.as_f64().unwrap() - sign * 10.0).abs() < 0.1, "{key}: {c}");
+            assert!(
+                (c.as_f64().unwrap() - sign * 10.0).abs() < 0.1,
+                "{key}: {c}"
+            );
         }
     }
     let spacing = v["mean_spacing"].as_f64().unwrap();
@@ -60,7 +69,10 @@ fn bad_input_exits_2_and_names_the_file() {
     let out = run(&["info", bad.to_str().unwrap()]);
     assert_eq!(out.status.code(), Some(2));
     let err = String::from_utf8(out.stderr).unwrap();
-    assert!(err.contains("broken.xyz") && err.contains("line 2"), "{err}");
+    assert!(
+        err.contains("broken.xyz") && err.contains("line 2"),
+        "{err}"
+    );
     assert!(out.stdout.is_empty());
 
     let out = run(&["info", "no-such-file.ply"]);
@@ -80,7 +92,11 @@ fn normals_command_writes_an_oriented_ply() {
         output.to_str().unwrap(),
         "--json",
     ]);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(v["normals"], "estimated");
     assert_eq!(v["components"], 1);

@@ -17,7 +17,9 @@ const ENCODINGS: [PlyEncoding; 3] = [
 ];
 
 fn asset(name: &str) -> std::path::PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("assets").join(name)
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("assets")
+        .join(name)
 }
 
 fn ply_bytes(cloud: &PointCloud, encoding: PlyEncoding) -> Vec<u8> {
@@ -47,12 +49,12 @@ fn ply_round_trip_is_bit_exact_in_every_encoding() {
     let cloud = PointCloud::new(positions, Some(normals)).unwrap();
     let without = PointCloud::new(cloud.positions().to_vec(), None).unwrap();
     for encoding in ENCODINGS {
-        let back = read_cloud_from_bytes(&ply_bytes(&cloud, encoding), CloudFormat::Ply, "mem")
-            .unwrap();
+        let back =
+            read_cloud_from_bytes(&ply_bytes(&cloud, encoding), CloudFormat::Ply, "mem").unwrap();
         assert_bit_exact(cloud.positions(), back.positions());
         assert_bit_exact(cloud.normals().unwrap(), back.normals().unwrap());
-        let back = read_cloud_from_bytes(&ply_bytes(&without, encoding), CloudFormat::Ply, "mem")
-            .unwrap();
+        let back =
+            read_cloud_from_bytes(&ply_bytes(&without, encoding), CloudFormat::Ply, "mem").unwrap();
         assert_bit_exact(without.positions(), back.positions());
         assert!(back.normals().is_none());
     }
@@ -162,14 +164,23 @@ fn every_format_reads_the_same_cloud() {
         assert_eq!(other, cloud, "{format}");
     }
     let ply = ply_bytes(&cloud, PlyEncoding::Ascii);
-    assert_eq!(read_cloud_from_bytes(&ply, CloudFormat::Ply, "c").unwrap(), cloud);
+    assert_eq!(
+        read_cloud_from_bytes(&ply, CloudFormat::Ply, "c").unwrap(),
+        cloud
+    );
     // CRLF line endings and a PLY with PCL-style normal names and double/int properties.
     let crlf = xyz.replace('\n', "\r\n");
-    assert_eq!(read_cloud_from_bytes(crlf.as_bytes(), CloudFormat::Xyz, "d").unwrap(), cloud);
+    assert_eq!(
+        read_cloud_from_bytes(crlf.as_bytes(), CloudFormat::Xyz, "d").unwrap(),
+        cloud
+    );
     let pcl = "ply\nformat ascii 1.0\nelement vertex 3\nproperty double x\nproperty int y\nproperty float z\n\
                property float normal_x\nproperty float normal_y\nproperty float normal_z\nelement face 0\n\
                property list uchar int vertex_indices\nend_header\n0 0 0 0 0 1\n1 0 0 0 0 1\n0 1 0 0 0 1\n";
-    assert_eq!(read_cloud_from_bytes(pcl.as_bytes(), CloudFormat::Ply, "e").unwrap(), cloud);
+    assert_eq!(
+        read_cloud_from_bytes(pcl.as_bytes(), CloudFormat::Ply, "e").unwrap(),
+        cloud
+    );
 }
 
 #[test]
@@ -177,7 +188,10 @@ fn ply_with_an_element_before_vertex() {
     let text = "ply\nformat ascii 1.0\nelement camera 1\nproperty float f\nelement vertex 2\n\
                 property float x\nproperty float y\nproperty float z\nend_header\n35\n1 2 3\n4 5 6\n";
     let c = read_cloud_from_bytes(text.as_bytes(), CloudFormat::Ply, "cam").unwrap();
-    assert_eq!(c.positions(), &[Vec3::new(1.0, 2.0, 3.0), Vec3::new(4.0, 5.0, 6.0)]);
+    assert_eq!(
+        c.positions(),
+        &[Vec3::new(1.0, 2.0, 3.0), Vec3::new(4.0, 5.0, 6.0)]
+    );
 }
 
 /// A PLY header for `n` float vertices (x y z) in `encoding`.
@@ -190,7 +204,11 @@ fn ply_header(format: &str, n: u64) -> String {
 fn binary_ply(format: &str, n: u64, values: &[f32], big_endian: bool) -> Vec<u8> {
     let mut bytes = ply_header(format, n).into_bytes();
     for v in values {
-        bytes.extend(if big_endian { v.to_be_bytes() } else { v.to_le_bytes() });
+        bytes.extend(if big_endian {
+            v.to_be_bytes()
+        } else {
+            v.to_le_bytes()
+        });
     }
     bytes
 }
@@ -308,7 +326,13 @@ fn malformed_input_gives_typed_errors() {
         };
         let message = err.to_string();
         assert!(check(&err.kind), "{name}: wrong kind: {message}");
-        assert!(message.starts_with(&format!("{source}: ")), "{name}: file not named: {message}");
-        assert!(message.contains(needle), "{name}: {message:?} lacks {needle:?}");
+        assert!(
+            message.starts_with(&format!("{source}: ")),
+            "{name}: file not named: {message}"
+        );
+        assert!(
+            message.contains(needle),
+            "{name}: {message:?} lacks {needle:?}"
+        );
     }
 }

@@ -11,7 +11,9 @@ use bevy_point_springs::core::{PointCloud, shapes};
 use glam::Vec3;
 
 fn asset(name: &str) -> std::path::PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("assets").join(name)
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("assets")
+        .join(name)
 }
 
 fn mean(values: impl Iterator<Item = f32>) -> f32 {
@@ -38,9 +40,20 @@ fn sphere926_estimated_normals_match_the_files() {
     let cloud = read_cloud(&asset("sphere926.pwn"), None).unwrap();
     let reference = cloud.normals().unwrap();
     // The file's normals are outward.
-    assert!(cloud.positions().iter().zip(reference).all(|(p, n)| p.dot(*n) > 0.0));
+    assert!(
+        cloud
+            .positions()
+            .iter()
+            .zip(reference)
+            .all(|(p, n)| p.dot(*n) > 0.0)
+    );
     let (estimated, report) = estimate_normals(cloud.positions(), DEFAULT_NORMAL_K).unwrap();
-    let abs_cos = mean(estimated.iter().zip(reference).map(|(a, b)| a.dot(*b).abs()));
+    let abs_cos = mean(
+        estimated
+            .iter()
+            .zip(reference)
+            .map(|(a, b)| a.dot(*b).abs()),
+    );
     let cos = mean(estimated.iter().zip(reference).map(|(a, b)| a.dot(*b)));
     println!("sphere926: mean |cos| = {abs_cos:.5}, mean cos = {cos:.5}, {report:?}");
     assert!(abs_cos >= 0.998, "mean |cos| {abs_cos}");

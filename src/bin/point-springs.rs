@@ -12,10 +12,10 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Instant;
 
+use bevy_point_springs::core::PointCloud;
 use bevy_point_springs::core::io::{CloudFormat, PlyEncoding, read_cloud, write_ply};
 use bevy_point_springs::core::knn::KnnIndex;
 use bevy_point_springs::core::normals::{DEFAULT_NORMAL_K, NormalSource, ensure_normals};
-use bevy_point_springs::core::PointCloud;
 use clap::{Parser, Subcommand};
 use serde::Serialize;
 
@@ -25,7 +25,11 @@ const EXIT_BAD_INPUT: u8 = 2;
 const EXIT_FAILURE: u8 = 1;
 
 #[derive(Parser)]
-#[command(name = "point-springs", version, about = "Point-sampled surfaces: inspect, prepare and (soon) simulate them")]
+#[command(
+    name = "point-springs",
+    version,
+    about = "Point-sampled surfaces: inspect, prepare and (soon) simulate them"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -143,7 +147,9 @@ fn run(command: Command) -> Result<(), Failure> {
     match command {
         Command::Info { file, format, json } => {
             let cloud = load(&file, format)?;
-            let bounds = cloud.bounds().ok_or_else(|| Failure::bad_input("empty cloud"))?;
+            let bounds = cloud
+                .bounds()
+                .ok_or_else(|| Failure::bad_input("empty cloud"))?;
             let spacing = cloud.spacing(&KnnIndex::build(cloud.positions()));
             let info = Info {
                 file: file.display().to_string(),
@@ -174,7 +180,10 @@ fn run(command: Command) -> Result<(), Failure> {
                 println!("bbox max      {:?}", info.bbox_max);
                 println!("bbox diagonal {}", info.bbox_diagonal);
                 if let Some(s) = spacing {
-                    println!("spacing       mean {} (min {}, max {})", s.mean, s.min, s.max);
+                    println!(
+                        "spacing       mean {} (min {}, max {})",
+                        s.mean, s.min, s.max
+                    );
                 }
                 Ok(())
             }
@@ -209,7 +218,11 @@ fn run(command: Command) -> Result<(), Failure> {
                 input: file.display().to_string(),
                 output: output.display().to_string(),
                 points: cloud.len(),
-                normals: if report.is_some() { "estimated" } else { "file" },
+                normals: if report.is_some() {
+                    "estimated"
+                } else {
+                    "file"
+                },
                 components: report.map(|r| r.components),
                 flipped: report.map(|r| r.flipped),
                 degenerate: report.map(|r| r.degenerate),
@@ -221,7 +234,13 @@ fn run(command: Command) -> Result<(), Failure> {
                 match report {
                     Some(r) => println!(
                         "{}: {} points, normals estimated (k = {k}): {} component(s), {} flipped, {} degenerate, {:.3} s → {}",
-                        out.input, out.points, r.components, r.flipped, r.degenerate, out.seconds, out.output
+                        out.input,
+                        out.points,
+                        r.components,
+                        r.flipped,
+                        r.degenerate,
+                        out.seconds,
+                        out.output
                     ),
                     None => println!(
                         "{}: {} points, the file's own normals kept → {}",

@@ -193,13 +193,14 @@ pub fn spacing_stats(positions: &[Vec3], index: &KnnIndex) -> Option<SpacingStat
         return None;
     }
     let graph = index.knn_graph(positions, 1);
-    let (sum, min, max) = graph.dist2().iter().fold(
-        (0.0f64, f32::INFINITY, 0.0f32),
-        |(sum, lo, hi), &d2| {
-            let d = d2.sqrt();
-            (sum + f64::from(d), lo.min(d), hi.max(d))
-        },
-    );
+    let (sum, min, max) =
+        graph
+            .dist2()
+            .iter()
+            .fold((0.0f64, f32::INFINITY, 0.0f32), |(sum, lo, hi), &d2| {
+                let d = d2.sqrt();
+                (sum + f64::from(d), lo.min(d), hi.max(d))
+            });
     Some(SpacingStats {
         mean: (sum / positions.len() as f64) as f32,
         min,
@@ -250,8 +251,11 @@ mod tests {
 
     #[test]
     fn bounds_of_points() {
-        let c = PointCloud::new(vec![Vec3::new(1.0, -2.0, 3.0), Vec3::new(-1.0, 5.0, 0.0)], None)
-            .unwrap();
+        let c = PointCloud::new(
+            vec![Vec3::new(1.0, -2.0, 3.0), Vec3::new(-1.0, 5.0, 0.0)],
+            None,
+        )
+        .unwrap();
         let b = c.bounds().unwrap();
         assert_eq!(b.min, Vec3::new(-1.0, -2.0, 0.0));
         assert_eq!(b.max, Vec3::new(1.0, 5.0, 3.0));

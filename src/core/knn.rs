@@ -80,57 +80,132 @@ impl KnnIndex {
 
     /// For every point of `positions` (the slice this index was built over), its `k` nearest
     /// *other* points, nearest first. `k` is clamped to `len - 1`. Runs in parallel.
+    ///
+    /// Queries run in Morton (Z-curve) order, so consecutive queries visit the same parts of
+    /// the tree whatever order the input points come in; rows are returned in input order.
     pub fn knn_graph(&self, positions: &[Vec3], k: usize) -> KnnGraph {
         let n = positions.len();
         debug_assert_eq!(n, self.len, "knn_graph needs the indexed positions");
         let k = k.min(n.saturating_sub(1));
-        let mut indices = vec![0u32; n * k];
-        let mut dist2 = vec![0f32; n * k];
         if k == 0 {
-            return KnnGraph { k, indices, dist2 };
+            return KnnGraph {
+                k,
+                indices: vec![0; n * k],
+                dist2: vec![0.0; n * k],
+            };
         }
+        let order = morton_order(positions);
+        // Rows in query (Morton) order first.
+        let mut sorted_idx = vec![0u32; n * k];
+        let mut sorted_d = vec![0f32; n * k];
         let fill = |(chunk, (idx_out, d_out)): (usize, (&mut [u32], &mut [f32]))| {
-            let first = chunk * QUERY_CHUNK;
             for (row, (idx_row, d_row)) in idx_out
                 .chunks_exact_mut(k)
                 .zip(d_out.chunks_exact_mut(k))
                 .enumerate()
             {
-                let i = first + row;
+                let i = order[chunk * QUERY_CHUNK + row] as usize;
                 let found = self.nearest(positions[i], k + 1);
                 // Drop the point itself; with duplicates it may not come first.
                 let own = found
                     .iter()
                     .position(|nb| nb.index as usize == i)
                     .unwrap_or(found.len() - 1);
-                for (slot, nb) in found
+                let others = found
                     .iter()
                     .enumerate()
                     .filter(|&(j, _)| j != own)
-                    .map(|(_, nb)| nb)
-                    .enumerate()
-                {
-                    idx_row[slot] = nb.index;
-                    d_row[slot] = nb.dist2;
+                    .map(|(_, nb)| nb);
+                for ((slot_i, slot_d), nb) in idx_row.iter_mut().zip(d_row.iter_mut()).zip(others) {
+                    *slot_i = nb.index;
+                    *slot_d = nb.dist2;
                 }
             }
         };
         let chunk = QUERY_CHUNK * k;
-        if n < PARALLEL_THRESHOLD {
-            indices
-                .chunks_mut(chunk)
-                .zip(dist2.chunks_mut(chunk))
+        let parallel = n >= PARALLEL_THRESHOLD;
+        if parallel {
+            sorted_idx
+                .par_chunks_mut(chunk)
+                .zip(sorted_d.par_chunks_mut(chunk))
                 .enumerate()
                 .for_each(fill);
         } else {
-            indices
-                .par_chunks_mut(chunk)
-                .zip(dist2.par_chunks_mut(chunk))
+            sorted_idx
+                .chunks_mut(chunk)
+                .zip(sorted_d.chunks_mut(chunk))
                 .enumerate()
                 .for_each(fill);
         }
+        // Back to input order: row order[r] of the result is row r of the sorted rows.
+        let mut rank = vec![0u32; n];
+        for (r, &i) in order.iter().enumerate() {
+            rank[i as usize] = r as u32;
+        }
+        let mut indices = vec![0u32; n * k];
+        let mut dist2 = vec![0f32; n * k];
+        let gather = |(i, (idx_row, d_row)): (usize, (&mut [u32], &mut [f32]))| {
+            let r = rank[i] as usize * k;
+            idx_row.copy_from_slice(&sorted_idx[r..r + k]);
+            d_row.copy_from_slice(&sorted_d[r..r + k]);
+        };
+        if parallel {
+            indices
+                .par_chunks_mut(k)
+                .zip(dist2.par_chunks_mut(k))
+                .enumerate()
+                .for_each(gather);
+        } else {
+            indices
+                .chunks_mut(k)
+                .zip(dist2.chunks_mut(k))
+                .enumerate()
+                .for_each(gather);
+        }
         KnnGraph { k, indices, dist2 }
     }
+}
+
+/// Bits per axis of a Morton code (3 × 21 = 63 bits).
+const MORTON_BITS: u32 = 21;
+
+/// Indices of `positions` sorted along a Morton (Z-order) curve through their bounding box:
+/// points close in this order are close in space.
+pub fn morton_order(positions: &[Vec3]) -> Vec<u32> {
+    let Some(first) = positions.first() else {
+        return Vec::new();
+    };
+    let (lo, hi) = positions
+        .iter()
+        .fold((*first, *first), |(lo, hi), &p| (lo.min(p), hi.max(p)));
+    let cells = ((1u32 << MORTON_BITS) - 1) as f32;
+    let scale = (hi - lo).max(Vec3::splat(f32::MIN_POSITIVE)).recip() * cells;
+    let mut keyed: Vec<(u64, u32)> = positions
+        .par_iter()
+        .enumerate()
+        .map(|(i, p)| {
+            let q = ((*p - lo) * scale)
+                .clamp(Vec3::ZERO, Vec3::splat(cells))
+                .as_uvec3();
+            (
+                spread_bits(q.x) | (spread_bits(q.y) << 1) | (spread_bits(q.z) << 2),
+                i as u32,
+            )
+        })
+        .collect();
+    keyed.par_sort_unstable();
+    keyed.into_iter().map(|(_, i)| i).collect()
+}
+
+/// Spreads the low 21 bits of `v` so that two zero bits separate each.
+fn spread_bits(v: u32) -> u64 {
+    let mut x = u64::from(v) & 0x1f_ffff;
+    x = (x | (x << 32)) & 0x001f_0000_0000_ffff;
+    x = (x | (x << 16)) & 0x001f_0000_ff00_00ff;
+    x = (x | (x << 8)) & 0x100f_00f0_0f00_f00f;
+    x = (x | (x << 4)) & 0x10c3_0c30_c30c_30c3;
+    x = (x | (x << 2)) & 0x1249_2492_4924_9249;
+    x
 }
 
 /// Each point's `k` nearest other points (row-major `n × k`), nearest first.
@@ -199,6 +274,24 @@ mod tests {
                 assert!((d - brute[slot].0).abs() <= 1e-5 * (1.0 + d));
             }
         }
+    }
+
+    #[test]
+    fn morton_order_is_a_permutation_that_keeps_neighbours_close() {
+        assert_eq!(spread_bits(0b111), 0b1001001);
+        let pts: Vec<Vec3> = (0..1000)
+            .map(|i| Vec3::new((i % 10) as f32, ((i / 10) % 10) as f32, (i / 100) as f32))
+            .collect();
+        let order = morton_order(&pts);
+        let mut seen = order.clone();
+        seen.sort_unstable();
+        assert!(seen.iter().enumerate().all(|(i, &v)| v as usize == i));
+        // On a grid, successive points along the curve are mostly unit steps apart.
+        let steps: f32 = order
+            .windows(2)
+            .map(|w| pts[w[0] as usize].distance(pts[w[1] as usize]))
+            .sum();
+        assert!(steps / 999.0 < 2.0);
     }
 
     #[test]

@@ -5,20 +5,19 @@
 //! * [`orient_normals`]: PCA gives a direction without a sign. Signs are made consistent by
 //!   propagating from point to point over the symmetrised k-NN graph in order of decreasing
 //!   confidence |nᵢ·nⱼ| (Prim's algorithm on the Riemannian graph with cost 1 − |nᵢ·nⱼ|, as in
-//!   Hoppe '92), one traversal per connected component. Each component is then turned
+//!   Hoppe '92, with the angle between normals quantised to 256 levels so that a bucket queue
+//!   replaces the binary heap), one traversal per connected component. Each component is then turned
 //!   *outward*: the sign of Σ nᵢ·(pᵢ − c) over the component (c its centroid), which for a
 //!   closed surface is proportional to its enclosed volume and is positive for caps of a sphere
 //!   too. A flat component (that sum ≈ 0) is turned so its mean normal points along the positive
 //!   direction of its dominant axis.
 //! * [`ensure_normals`]: keeps a cloud's own normals when they are usable, estimates otherwise.
 
-use std::collections::BinaryHeap;
-
 use glam::{DMat3, DVec3, Vec3};
 use rayon::prelude::*;
 
 use crate::core::cloud::PointCloud;
-use crate::core::knn::{KnnGraph, KnnIndex};
+use crate::core::knn::{KnnGraph, KnnIndex, morton_order};
 
 /// Default neighbourhood size for PCA normals (the paper's k lies in 10–20 for simplification;
 /// 10 neighbours give stable normals on evenly sampled surfaces at the lowest cost).
@@ -188,9 +187,9 @@ pub fn orient_normals(
         return Err(NormalsError::TooManyPoints(n));
     }
     let reverse = ReverseEdges::build(graph);
-    let original: Vec<Vec3> = normals.to_vec();
     let mut component = vec![u32::MAX; n];
-    let mut heap: BinaryHeap<u64> = BinaryHeap::new();
+    let mut flipped_by_pca_sign = vec![false; n];
+    let mut queue = BucketQueue::new();
     let mut components = 0u32;
     for seed in 0..n {
         if component[seed] != u32::MAX {
@@ -198,9 +197,8 @@ pub fn orient_normals(
         }
         let id = components;
         components += 1;
-        heap.push(pack(1.0, seed as u32, false));
-        while let Some(key) = heap.pop() {
-            let (i, flip) = unpack(key);
+        queue.push(1.0, seed as u32, false);
+        while let Some((i, flip)) = queue.pop() {
             let i = i as usize;
             if component[i] != u32::MAX {
                 continue;
@@ -208,21 +206,22 @@ pub fn orient_normals(
             component[i] = id;
             if flip {
                 normals[i] = -normals[i];
+                flipped_by_pca_sign[i] = true;
             }
             let ni = normals[i];
             for &j in graph.neighbours(i).iter().chain(reverse.of(i)) {
                 if component[j as usize] == u32::MAX {
                     let dot = ni.dot(normals[j as usize]);
-                    heap.push(pack(dot.abs(), j, dot < 0.0));
+                    queue.push(dot.abs(), j, dot < 0.0);
                 }
             }
         }
     }
-    turn_outward(positions, normals, &component, components as usize);
-    let flipped = normals
+    let turned = turn_outward(positions, normals, &component, components as usize);
+    let flipped = component
         .iter()
-        .zip(&original)
-        .filter(|(a, b)| a.dot(**b) < 0.0)
+        .zip(&flipped_by_pca_sign)
+        .filter(|&(&c, &f)| f != turned[c as usize])
         .count();
     Ok(OrientationReport {
         components: components as usize,
@@ -231,14 +230,50 @@ pub fn orient_normals(
     })
 }
 
-/// Heap key: confidence in the high 32 bits (non-negative floats order like their bits), then
-/// the point index and the flip flag. Ties break towards higher indices, deterministically.
-fn pack(confidence: f32, index: u32, flip: bool) -> u64 {
-    (u64::from(confidence.clamp(0.0, 1.0).to_bits()) << 32) | (u64::from(index) << 1) | u64::from(flip)
+/// Confidence levels of the propagation queue. Edges are popped from the most confident
+/// non-empty level (angles between normals quantised to π/2 / 256 ≈ 0.35°), which orders the
+/// traversal like Prim's minimum spanning tree while pushing and popping in O(1).
+const CONFIDENCE_LEVELS: usize = 256;
+
+/// A monotone bucket queue of (point, flip) entries keyed by confidence |nᵢ·nⱼ|.
+struct BucketQueue {
+    buckets: Vec<Vec<u32>>,
+    /// Highest bucket that may be non-empty.
+    top: usize,
 }
 
-fn unpack(key: u64) -> (u32, bool) {
-    (((key >> 1) & 0x7FFF_FFFF) as u32, key & 1 == 1)
+impl BucketQueue {
+    fn new() -> Self {
+        Self {
+            buckets: vec![Vec::new(); CONFIDENCE_LEVELS],
+            top: 0,
+        }
+    }
+
+    /// Bucket of a confidence: by the angle between the normals, most confident highest.
+    fn level(confidence: f32) -> usize {
+        let angle = confidence.clamp(0.0, 1.0).acos() * std::f32::consts::FRAC_2_PI;
+        let from_top = (angle * CONFIDENCE_LEVELS as f32) as usize;
+        CONFIDENCE_LEVELS - 1 - from_top.min(CONFIDENCE_LEVELS - 1)
+    }
+
+    fn push(&mut self, confidence: f32, index: u32, flip: bool) {
+        let level = Self::level(confidence);
+        self.buckets[level].push((index << 1) | u32::from(flip));
+        self.top = self.top.max(level);
+    }
+
+    fn pop(&mut self) -> Option<(u32, bool)> {
+        loop {
+            if let Some(entry) = self.buckets[self.top].pop() {
+                return Some((entry >> 1, entry & 1 == 1));
+            }
+            if self.top == 0 {
+                return None;
+            }
+            self.top -= 1;
+        }
+    }
 }
 
 /// Edges j → i of the k-NN graph whose reverse i → j is not already in the graph, as CSR, so
@@ -282,7 +317,13 @@ impl ReverseEdges {
     }
 }
 
-fn turn_outward(positions: &[Vec3], normals: &mut [Vec3], component: &[u32], count: usize) {
+/// Flips whole components outward; returns, per component, whether it was flipped.
+fn turn_outward(
+    positions: &[Vec3],
+    normals: &mut [Vec3],
+    component: &[u32],
+    count: usize,
+) -> Vec<bool> {
     let mut centroid = vec![(DVec3::ZERO, 0usize); count];
     for (p, &c) in positions.iter().zip(component) {
         centroid[c as usize].0 += p.as_dvec3();
@@ -314,6 +355,7 @@ fn turn_outward(positions: &[Vec3], normals: &mut [Vec3], component: &[u32], cou
             *n = -*n;
         }
     }
+    flip
 }
 
 /// Estimates consistently oriented unit normals for `positions` from `k` nearest neighbours.
@@ -330,11 +372,19 @@ pub fn estimate_normals(
             found: positions.len(),
         });
     }
-    let index = KnnIndex::build(positions);
-    let graph = index.knn_graph(positions, k);
-    let (mut normals, degenerate) = pca_normals(positions, &graph);
-    let mut report = orient_normals(positions, &mut normals, &graph)?;
+    // Work on the points in Morton order: neighbours then sit close in memory, which makes the
+    // k-NN queries, the PCA gathers and the orientation traversal cache-friendly.
+    let order = morton_order(positions);
+    let sorted: Vec<Vec3> = order.iter().map(|&i| positions[i as usize]).collect();
+    let index = KnnIndex::build(&sorted);
+    let graph = index.knn_graph(&sorted, k);
+    let (mut sorted_normals, degenerate) = pca_normals(&sorted, &graph);
+    let mut report = orient_normals(&sorted, &mut sorted_normals, &graph)?;
     report.degenerate = degenerate;
+    let mut normals = vec![Vec3::ZERO; positions.len()];
+    for (&i, n) in order.iter().zip(sorted_normals) {
+        normals[i as usize] = n;
+    }
     Ok((normals, report))
 }
 
@@ -381,7 +431,11 @@ mod tests {
         let pts = vec![Vec3::ONE; 20];
         let (normals, report) = estimate_normals(&pts, 5).unwrap();
         assert_eq!(report.degenerate, 20);
-        assert!(normals.iter().all(|n| n.is_finite() && (n.length() - 1.0).abs() < 1e-6));
+        assert!(
+            normals
+                .iter()
+                .all(|n| n.is_finite() && (n.length() - 1.0).abs() < 1e-6)
+        );
     }
 
     #[test]

@@ -66,7 +66,10 @@ fn lattice_sheet(min: Vec2, max: Vec2, spacing: f32, inside: impl Fn(Vec2) -> bo
         for r in 0..rows {
             let shift = if r % 2 == 1 { spacing * 0.5 } else { 0.0 };
             for c in 0..cols {
-                let p = Vec2::new(min.x + shift + c as f32 * spacing, min.y + r as f32 * row_height);
+                let p = Vec2::new(
+                    min.x + shift + c as f32 * spacing,
+                    min.y + r as f32 * row_height,
+                );
                 if p.x <= max.x + spacing * 1e-3 && inside(p) {
                     positions.push(p.extend(0.0));
                 }
@@ -149,7 +152,11 @@ mod tests {
         let s = square_sheet(1.0, 0.05);
         // Triangular lattice: one point per (√3/2)·h² of area.
         let expected = 1.0 / (LATTICE_ROW * 0.05 * 0.05);
-        assert!((s.len() as f32 - expected).abs() / expected < 0.1, "{}", s.len());
+        assert!(
+            (s.len() as f32 - expected).abs() / expected < 0.1,
+            "{}",
+            s.len()
+        );
         let b = letter_b(1.0, 0.02);
         assert!(b.len() > 500);
         let bb = b.bounds().unwrap();

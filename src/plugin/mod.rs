@@ -6,10 +6,13 @@
 //! normals; the later sets are configured (so user systems can be ordered against them) and
 //! will be filled by the spring network and the solver.
 
+#[cfg(feature = "render")]
+pub mod render;
+
 use bevy::prelude::*;
 
-use crate::core::normals::{DEFAULT_NORMAL_K, NormalSource, ensure_normals};
 use crate::core::PointCloud;
+use crate::core::normals::{DEFAULT_NORMAL_K, NormalSource, ensure_normals};
 
 /// The plugin. Add it to an [`App`] next to `DefaultPlugins` or `MinimalPlugins`.
 #[derive(Debug, Clone, Copy)]

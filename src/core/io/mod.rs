@@ -117,7 +117,9 @@ pub enum LoadErrorKind {
     #[error("cannot read: {0}")]
     Io(#[from] std::io::Error),
     /// No format was given and the extension names none.
-    #[error("cannot tell the format from the extension {extension:?}; name one of ply, xyz, pwn, off, obj")]
+    #[error(
+        "cannot tell the format from the extension {extension:?}; name one of ply, xyz, pwn, off, obj"
+    )]
     UnknownFormat {
         /// The extension found, if any.
         extension: Option<String>,
@@ -170,7 +172,9 @@ pub enum LoadErrorKind {
         limit: f32,
     },
     /// A header declares more elements than the file has bytes for.
-    #[error("the header declares {declared} {element} elements, but the {payload_bytes} bytes after it can hold at most {max}")]
+    #[error(
+        "the header declares {declared} {element} elements, but the {payload_bytes} bytes after it can hold at most {max}"
+    )]
     CountTooLarge {
         /// The element, e.g. `vertex`.
         element: String,
@@ -257,9 +261,7 @@ pub fn read_cloud(path: &Path, format: Option<CloudFormat>) -> Result<PointCloud
         Some(f) => f,
         None => {
             return Err(err(LoadErrorKind::UnknownFormat {
-                extension: path
-                    .extension()
-                    .map(|e| e.to_string_lossy().into_owned()),
+                extension: path.extension().map(|e| e.to_string_lossy().into_owned()),
             }));
         }
     };

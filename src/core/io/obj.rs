@@ -24,7 +24,9 @@ pub(super) fn read(bytes: &[u8]) -> Result<PointCloud, LoadErrorKind> {
         let (line, content) = item?;
         let mut tokens = content.split_ascii_whitespace();
         match tokens.next() {
-            Some("v") => positions.push(position(parse_numbers(tokens, line, "at least 3")?, line)?),
+            Some("v") => {
+                positions.push(position(parse_numbers(tokens, line, "at least 3")?, line)?)
+            }
             Some("vn") => file_normals.push(normal(parse_numbers(tokens, line, "3")?, line)?),
             Some("f") => {
                 for corner in tokens {
@@ -47,13 +49,25 @@ pub(super) fn read(bytes: &[u8]) -> Result<PointCloud, LoadErrorKind> {
 }
 
 /// Resolves a 1-based (or negative, relative) OBJ index against `count` items defined so far.
-fn resolve(token: &str, count: usize, line: usize, what: &'static str) -> Result<u32, LoadErrorKind> {
+fn resolve(
+    token: &str,
+    count: usize,
+    line: usize,
+    what: &'static str,
+) -> Result<u32, LoadErrorKind> {
     let index: i64 = token.parse().map_err(|_| LoadErrorKind::Syntax {
         location: super::Location::Line(line),
-        message: format!("expected a {what} index, found {}", super::text::quote(token)),
+        message: format!(
+            "expected a {what} index, found {}",
+            super::text::quote(token)
+        ),
     })?;
     let count_i = count as i64;
-    let zero_based = if index > 0 { index - 1 } else { count_i + index };
+    let zero_based = if index > 0 {
+        index - 1
+    } else {
+        count_i + index
+    };
     if index == 0 || zero_based < 0 || zero_based >= count_i {
         return Err(LoadErrorKind::BadIndex {
             line,
@@ -62,7 +76,8 @@ fn resolve(token: &str, count: usize, line: usize, what: &'static str) -> Result
             count,
         });
     }
-    u32::try_from(zero_based).map_err(|_| LoadErrorKind::Unsupported("more than 2^32 vertices".into()))
+    u32::try_from(zero_based)
+        .map_err(|_| LoadErrorKind::Unsupported("more than 2^32 vertices".into()))
 }
 
 fn normals_from_faces(

@@ -36,7 +36,10 @@ pub(super) fn read(bytes: &[u8]) -> Result<PointCloud, LoadErrorKind> {
     }
     let has_normals = prefix.contains('N');
     let mut rest: Vec<&str> = tokens.collect();
-    if rest.first().is_some_and(|t| t.eq_ignore_ascii_case("BINARY")) {
+    if rest
+        .first()
+        .is_some_and(|t| t.eq_ignore_ascii_case("BINARY"))
+    {
         return Err(LoadErrorKind::Unsupported("binary OFF".into()));
     }
     let mut count_line = line;
@@ -67,7 +70,11 @@ pub(super) fn read(bytes: &[u8]) -> Result<PointCloud, LoadErrorKind> {
     let capacity = declared.min(max) as usize;
     let mut positions = Vec::with_capacity(capacity);
     let mut normals = Vec::with_capacity(if has_normals { capacity } else { 0 });
-    let expected = if has_normals { "at least 6" } else { "at least 3" };
+    let expected = if has_normals {
+        "at least 6"
+    } else {
+        "at least 3"
+    };
     while (positions.len() as u64) < declared {
         let Some(item) = lines.next_content() else {
             return Err(LoadErrorKind::Truncated {

@@ -34,10 +34,7 @@ pub enum PlyEncoding {
 
 const VERTEX: &str = "vertex";
 const POSITION_NAMES: [&str; 3] = ["x", "y", "z"];
-const NORMAL_NAME_SETS: [[&str; 3]; 2] = [
-    ["nx", "ny", "nz"],
-    ["normal_x", "normal_y", "normal_z"],
-];
+const NORMAL_NAME_SETS: [[&str; 3]; 2] = [["nx", "ny", "nz"], ["normal_x", "normal_y", "normal_z"]];
 
 /// One vertex as read: position and normal slots, in `f64` so range checks see the true value.
 #[derive(Debug, Clone, Copy)]
@@ -212,7 +209,11 @@ pub(super) fn read(bytes: &[u8]) -> Result<PointCloud, LoadErrorKind> {
 
 /// Maps a payload error; for ASCII files the offending line is quoted so the message shows
 /// what could not be read (e.g. `nan`, which the PLY grammar does not accept).
-fn element_error(e: &ply_rs_bw::parser::ParseError, def: &ElementDef, bytes: &[u8]) -> LoadErrorKind {
+fn element_error(
+    e: &ply_rs_bw::parser::ParseError,
+    def: &ElementDef,
+    bytes: &[u8],
+) -> LoadErrorKind {
     if e.kind() == std::io::ErrorKind::UnexpectedEof {
         return LoadErrorKind::Truncated {
             element: def.name.clone(),
@@ -227,7 +228,11 @@ fn element_error(e: &ply_rs_bw::parser::ParseError, def: &ElementDef, bytes: &[u
             .nth(line.saturating_sub(1))
             .map(String::from_utf8_lossy);
         if let Some(text) = text {
-            message.push_str(&format!(" ({} {})", def.name, super::text::quote(text.trim())));
+            message.push_str(&format!(
+                " ({} {})",
+                def.name,
+                super::text::quote(text.trim())
+            ));
         }
     }
     kind
