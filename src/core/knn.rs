@@ -8,9 +8,6 @@ use glam::Vec3;
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use rayon::prelude::*;
 
-/// Point count under which graph queries run on one thread (rayon's dispatch costs more).
-const PARALLEL_THRESHOLD: usize = 4096;
-
 /// Points per rayon task when building a graph.
 const QUERY_CHUNK: usize = 1024;
 
@@ -123,20 +120,11 @@ impl KnnIndex {
             }
         };
         let chunk = QUERY_CHUNK * k;
-        let parallel = n >= PARALLEL_THRESHOLD;
-        if parallel {
-            sorted_idx
-                .par_chunks_mut(chunk)
-                .zip(sorted_d.par_chunks_mut(chunk))
-                .enumerate()
-                .for_each(fill);
-        } else {
-            sorted_idx
-                .chunks_mut(chunk)
-                .zip(sorted_d.chunks_mut(chunk))
-                .enumerate()
-                .for_each(fill);
-        }
+        sorted_idx
+            .par_chunks_mut(chunk)
+            .zip(sorted_d.par_chunks_mut(chunk))
+            .enumerate()
+            .for_each(fill);
         // Back to input order: row order[r] of the result is row r of the sorted rows.
         let mut rank = vec![0u32; n];
         for (r, &i) in order.iter().enumerate() {
@@ -144,24 +132,16 @@ impl KnnIndex {
         }
         let mut indices = vec![0u32; n * k];
         let mut dist2 = vec![0f32; n * k];
-        let gather = |(i, (idx_row, d_row)): (usize, (&mut [u32], &mut [f32]))| {
-            let r = rank[i] as usize * k;
-            idx_row.copy_from_slice(&sorted_idx[r..r + k]);
-            d_row.copy_from_slice(&sorted_d[r..r + k]);
-        };
-        if parallel {
-            indices
-                .par_chunks_mut(k)
-                .zip(dist2.par_chunks_mut(k))
-                .enumerate()
-                .for_each(gather);
-        } else {
-            indices
-                .chunks_mut(k)
-                .zip(dist2.chunks_mut(k))
-                .enumerate()
-                .for_each(gather);
-        }
+        indices
+            .par_chunks_mut(k)
+            .zip(dist2.par_chunks_mut(k))
+            .enumerate()
+            .with_min_len(QUERY_CHUNK)
+            .for_each(|(i, (idx_row, d_row))| {
+                let r = rank[i] as usize * k;
+                idx_row.copy_from_slice(&sorted_idx[r..r + k]);
+                d_row.copy_from_slice(&sorted_d[r..r + k]);
+            });
         KnnGraph { k, indices, dist2 }
     }
 }

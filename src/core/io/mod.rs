@@ -315,6 +315,11 @@ pub fn write_ply_to<W: Write>(
     ply::write(out, cloud, encoding)
 }
 
+/// A header's element count up to this many times what the bytes after it can hold is read
+/// and reported as a truncated file; beyond it, the header is reported as corrupt without
+/// reading anything.
+pub(crate) const TRUNCATION_FACTOR: u64 = 2;
+
 /// Converts a value read from a file to an `f32` coordinate, checking it.
 pub(crate) fn coordinate(
     value: f64,

@@ -11,10 +11,6 @@ use crate::core::cloud::PointCloud;
 /// Fewest bytes one ASCII vertex line can take: `0 0 0\n`.
 const MIN_VERTEX_LINE_BYTES: u64 = 6;
 
-/// A declared count up to this many times what the bytes can hold is read and reported as a
-/// truncated file; beyond it, the header is reported as corrupt without reading.
-pub(super) const TRUNCATION_FACTOR: u64 = 2;
-
 pub(super) fn read(bytes: &[u8]) -> Result<PointCloud, LoadErrorKind> {
     let mut lines = TextLines::new(bytes);
     let Some(first) = lines.next_content() else {
@@ -58,7 +54,7 @@ pub(super) fn read(bytes: &[u8]) -> Result<PointCloud, LoadErrorKind> {
     let max = payload_bytes / MIN_VERTEX_LINE_BYTES;
     // A count beyond what the bytes can hold is either a truncated file (reported as such
     // once the lines run out) or, when far beyond, a corrupt header, rejected before reading.
-    if declared > max.saturating_mul(TRUNCATION_FACTOR) {
+    if declared > max.saturating_mul(super::TRUNCATION_FACTOR) {
         return Err(LoadErrorKind::CountTooLarge {
             element: "vertex".into(),
             declared,

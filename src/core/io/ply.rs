@@ -171,7 +171,7 @@ pub(super) fn read(bytes: &[u8]) -> Result<PointCloud, LoadErrorKind> {
             // A count far beyond what the bytes can hold is a corrupt header, rejected before
             // reading; one a little beyond is a truncated file. Fixed-size binary records tell
             // exactly how many are complete; otherwise the parser finds where the data ends.
-            if declared > max.saturating_mul(super::off::TRUNCATION_FACTOR) {
+            if declared > max.saturating_mul(super::TRUNCATION_FACTOR) {
                 return Err(LoadErrorKind::CountTooLarge {
                     element: def.name.clone(),
                     declared,
