@@ -5,7 +5,7 @@
 //! ```
 //!
 //! Without FILE it shows `assets/half.xyz` (a scanned half sphere without normals: they are
-//! estimated and oriented on the first tick) beside `assets/sphere926.pwn`.
+//! estimated and oriented in the background by the plugin) beside `assets/sphere926.pwn`.
 
 mod utils;
 

@@ -1,6 +1,6 @@
 //! The headless plugin: `MinimalPlugins` + `PointSpringsPlugin`, one `update()` = one known step.
 
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use bevy::prelude::*;
 use bevy::time::TimeUpdateStrategy;
@@ -9,6 +9,9 @@ use bevy_point_springs::prelude::*;
 
 /// Fixed tick used by the tests.
 const TICK: Duration = Duration::from_micros(15_625);
+
+/// Upper bound on waiting for background preparation (a hang guard, not a speed check).
+const SETTLE_TIMEOUT: Duration = Duration::from_secs(60);
 
 fn create_app() -> App {
     let mut app = App::new();
@@ -56,8 +59,19 @@ fn surfaces_get_oriented_normals_and_bad_ones_fail_cleanly() {
     let good = app.world_mut().spawn(DenseSurface::new(bare)).id();
     let tiny = PointCloud::new(vec![Vec3::ZERO, Vec3::X], None).unwrap();
     let bad = app.world_mut().spawn(DenseSurface::new(tiny)).id();
-    for _ in 0..3 {
+    // Normals are estimated on the async compute pool: tick until both surfaces settle.
+    let settled = |app: &App| {
+        [good, bad].iter().all(|&e| {
+            !matches!(
+                app.world().get::<SurfaceStatus>(e),
+                Some(SurfaceStatus::Pending | SurfaceStatus::Preparing)
+            )
+        })
+    };
+    let deadline = Instant::now() + SETTLE_TIMEOUT;
+    while !settled(&app) && Instant::now() < deadline {
         app.update();
+        std::thread::sleep(Duration::from_millis(1));
     }
     let world = app.world();
     assert_eq!(
@@ -77,4 +91,32 @@ fn surfaces_get_oriented_normals_and_bad_ones_fail_cleanly() {
         Some(SurfaceStatus::Failed(message)) => assert!(message.contains("at least")),
         other => panic!("expected a failure, got {other:?}"),
     }
+}
+
+#[test]
+fn surfaces_with_normals_are_ready_on_the_first_tick() {
+    let mut app = create_app();
+    let sphere = shapes::fibonacci_sphere(500, 2.0);
+    let entity = app
+        .world_mut()
+        .spawn(DenseSurface::new(sphere.clone()))
+        .id();
+    // One fixed tick runs per update with ManualDuration == timestep.
+    app.update();
+    assert_eq!(
+        app.world().get::<SurfaceStatus>(entity),
+        Some(&SurfaceStatus::Ready {
+            normals_estimated: false
+        })
+    );
+    // The cloud's own normals are kept (normalised), not re-estimated.
+    let cloud = &app.world().get::<DenseSurface>(entity).unwrap().cloud;
+    assert!(cloud.positions() == sphere.positions());
+    let kept = cloud
+        .normals()
+        .unwrap()
+        .iter()
+        .zip(sphere.normals().unwrap())
+        .all(|(a, b)| a.dot(*b) > 0.999_999);
+    assert!(kept);
 }

@@ -3,16 +3,18 @@
 //! One entity per deformable surface; components hold whole arrays, not one entity per point.
 //! The simulation runs on Bevy's fixed tick in the chained sets of [`PointSpringsSystems`]:
 //! `Prepare → Forces → Integrate → Writeback`. Today `Prepare` gives new surfaces oriented
-//! normals; the later sets are configured (so user systems can be ordered against them) and
-//! will be filled by the spring network and the solver.
+//! normals — estimated on Bevy's async compute pool, so a large cloud never stalls a frame —
+//! and the later sets are configured (so user systems can be ordered against them) and will be
+//! filled by the spring network and the solver.
 
 #[cfg(feature = "render")]
 pub mod render;
 
 use bevy::prelude::*;
+use bevy::tasks::{AsyncComputeTaskPool, Task, block_on, poll_once};
 
 use crate::core::PointCloud;
-use crate::core::normals::{DEFAULT_NORMAL_K, NormalSource, ensure_normals};
+use crate::core::normals::{DEFAULT_NORMAL_K, NormalsError, OrientationReport, estimate_normals};
 
 /// The plugin. Add it to an [`App`] next to `DefaultPlugins` or `MinimalPlugins`.
 #[derive(Debug, Clone, Copy)]
@@ -57,7 +59,8 @@ pub enum PointSpringsSystems {
 #[reflect(Component, Debug, Default)]
 #[require(SurfaceStatus)]
 pub struct DenseSurface {
-    /// The points and normals. Normals are estimated on the first tick when missing.
+    /// The points and normals. Missing normals are estimated in the background once the
+    /// plugin sees the surface (see [`SurfaceStatus`]).
     #[reflect(ignore)]
     pub cloud: PointCloud,
 }
@@ -69,13 +72,16 @@ impl DenseSurface {
     }
 }
 
-/// Where a [`DenseSurface`] is in its preparation.
+/// Where a [`DenseSurface`] is in its preparation. Set it back to `Pending` after replacing
+/// the cloud to prepare the surface again.
 #[derive(Component, Debug, Clone, Default, PartialEq, Eq, Reflect)]
 #[reflect(Component, Debug, Default)]
 pub enum SurfaceStatus {
     /// Not prepared yet.
     #[default]
     Pending,
+    /// Normals are being estimated on the async compute pool.
+    Preparing,
     /// Prepared; `normals_estimated` tells whether normals were estimated (true) or the
     /// cloud's own (false).
     Ready {
@@ -106,25 +112,73 @@ impl Plugin for PointSpringsPlugin {
         )
         .add_systems(
             FixedUpdate,
-            prepare_surfaces.in_set(PointSpringsSystems::Prepare),
+            (start_preparation, finish_preparation)
+                .chain()
+                .in_set(PointSpringsSystems::Prepare),
         );
     }
 }
 
-/// Gives pending surfaces oriented normals.
-fn prepare_surfaces(
+/// Normal estimation under way for a surface.
+#[derive(Component)]
+struct NormalsTask(Task<Result<(Vec<Vec3>, OrientationReport), NormalsError>>);
+
+/// Starts preparing pending surfaces: their own normals are kept (normalised) at once; clouds
+/// without usable normals get an estimation task on the async compute pool.
+fn start_preparation(
+    mut commands: Commands,
     config: Res<PointSpringsConfig>,
-    mut surfaces: Query<(&mut DenseSurface, &mut SurfaceStatus)>,
+    mut surfaces: Query<(Entity, &mut DenseSurface, &mut SurfaceStatus)>,
 ) {
-    for (mut surface, mut status) in &mut surfaces {
+    for (entity, mut surface, mut status) in &mut surfaces {
         if *status != SurfaceStatus::Pending {
             continue;
         }
-        *status = match ensure_normals(&mut surface.cloud, config.normal_k) {
-            Ok(source) => SurfaceStatus::Ready {
-                normals_estimated: matches!(source, NormalSource::Estimated(_)),
+        let cloud = &mut surface.cloud;
+        if cloud.has_usable_normals() {
+            let normals = cloud.normals().unwrap_or_default().to_vec();
+            *status = match cloud.set_normals(normals) {
+                Ok(()) => SurfaceStatus::Ready {
+                    normals_estimated: false,
+                },
+                Err(e) => SurfaceStatus::Failed(e.to_string()),
+            };
+            continue;
+        }
+        let positions = cloud.positions().to_vec();
+        let k = config.normal_k;
+        let task =
+            AsyncComputeTaskPool::get().spawn(async move { estimate_normals(&positions, k) });
+        commands.entity(entity).insert(NormalsTask(task));
+        *status = SurfaceStatus::Preparing;
+    }
+}
+
+/// Collects finished normal estimations.
+fn finish_preparation(
+    mut commands: Commands,
+    mut surfaces: Query<(
+        Entity,
+        &mut DenseSurface,
+        &mut SurfaceStatus,
+        &mut NormalsTask,
+    )>,
+) {
+    for (entity, mut surface, mut status, mut task) in &mut surfaces {
+        let Some(result) = block_on(poll_once(&mut task.0)) else {
+            continue;
+        };
+        commands.entity(entity).remove::<NormalsTask>();
+        *status = match result.map_err(|e| e.to_string()).and_then(|(normals, _)| {
+            surface
+                .cloud
+                .set_normals(normals)
+                .map_err(|e| e.to_string())
+        }) {
+            Ok(()) => SurfaceStatus::Ready {
+                normals_estimated: true,
             },
-            Err(e) => SurfaceStatus::Failed(e.to_string()),
+            Err(message) => SurfaceStatus::Failed(message),
         };
     }
 }
