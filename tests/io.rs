@@ -75,9 +75,8 @@ fn ply_round_trip_through_a_file() {
     assert!(e.to_string().contains("dir.ply"));
 }
 
+// Case counts follow proptest's default (256), or `PROPTEST_CASES` for longer fuzzing runs.
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(64))]
-
     #[test]
     fn ply_round_trip_random_bits(
         raw in prop::collection::vec(prop::array::uniform6(any::<u32>()), 1..40),
