@@ -14,7 +14,10 @@ use bevy::prelude::*;
 use bevy::tasks::{AsyncComputeTaskPool, Task, block_on, poll_once};
 
 use crate::core::PointCloud;
-use crate::core::normals::{DEFAULT_NORMAL_K, NormalsError, OrientationReport, estimate_normals};
+use crate::core::normals::{
+    DEFAULT_NORMAL_K, NormalSource, NormalsError, OrientationReport, ensure_normals,
+    estimate_normals,
+};
 
 /// The plugin. Add it to an [`App`] next to `DefaultPlugins` or `MinimalPlugins`.
 #[derive(Debug, Clone, Copy)]
@@ -136,10 +139,10 @@ fn start_preparation(
         }
         let cloud = &mut surface.cloud;
         if cloud.has_usable_normals() {
-            let normals = cloud.normals().unwrap_or_default().to_vec();
-            *status = match cloud.set_normals(normals) {
-                Ok(()) => SurfaceStatus::Ready {
-                    normals_estimated: false,
+            // Only normalises the cloud's own normals: cheap, done at once.
+            *status = match ensure_normals(cloud, config.normal_k) {
+                Ok(source) => SurfaceStatus::Ready {
+                    normals_estimated: source != NormalSource::File,
                 },
                 Err(e) => SurfaceStatus::Failed(e.to_string()),
             };
