@@ -6,7 +6,8 @@
 //! The crate has two layers:
 //!
 //! * [`core`] — pure Rust on plain slices (glam, spade, kiddo; no Bevy): point-cloud I/O,
-//!   k-NN, PCA normals with consistent orientation, procedural test surfaces. It builds and
+//!   k-NN, PCA normals with consistent orientation, procedural test surfaces, the paper's
+//!   tangent-plane Delaunay simplification (§3) and the spring network with masses (§4). It builds and
 //!   tests without Bevy (`--no-default-features`).
 //! * `plugin` (feature `plugin`, on by default) — the Bevy 0.19 layer: ECS components and the
 //!   fixed-tick system sets that later stages fill.
@@ -36,7 +37,9 @@ pub mod plugin;
 /// The most used types, for `use bevy_point_springs::prelude::*`.
 pub mod prelude {
     pub use crate::core::io::{CloudFormat, LoadError, PlyEncoding, read_cloud, write_ply};
+    pub use crate::core::network::{NetworkConfig, SpringNetwork, build_network};
     pub use crate::core::normals::{NormalSource, ensure_normals, estimate_normals};
+    pub use crate::core::simplify::{SimplifyConfig, simplify, simplify_cloud};
     pub use crate::core::{Aabb, PointCloud};
 
     #[cfg(feature = "render")]

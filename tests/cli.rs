@@ -110,3 +110,85 @@ fn normals_command_writes_an_oriented_ply() {
         .count();
     assert!(outward as f32 / 325.0 > 0.97, "{outward} of 325 outward");
 }
+
+#[test]
+fn simplify_writes_simulation_points_and_reports_the_network() {
+    let input = asset("sphere926.pwn");
+    let output = scratch("sim.ply");
+    let out = run(&[
+        "simplify",
+        input.to_str().unwrap(),
+        "--target",
+        "120",
+        "--density",
+        "2",
+        "-o",
+        output.to_str().unwrap(),
+        "--json",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    for key in [
+        "input_points",
+        "sim_points",
+        "stretch_springs",
+        "bend_springs",
+        "boundary_points",
+        "components",
+        "total_mass",
+        "min_diameter",
+        "seconds",
+    ] {
+        assert!(!v[key].is_null(), "missing {key}: {v}");
+    }
+    assert_eq!(v["input_points"], 926);
+    assert_eq!(v["sim_points"], 120);
+    assert_eq!(v["components"], 1);
+    assert_eq!(v["boundary_points"], 0);
+    // A closed triangulated surface: E = 3V − 6.
+    assert_eq!(v["stretch_springs"], 3 * 120 - 6);
+    let written = read_cloud(&output, None).unwrap();
+    assert_eq!(written.len(), 120);
+    assert!(written.has_usable_normals());
+    // The simulation points are points of the input.
+    let input_cloud = read_cloud(&input, None).unwrap();
+    assert!(
+        written
+            .positions()
+            .iter()
+            .all(|p| input_cloud.positions().contains(p))
+    );
+}
+
+#[test]
+fn simplify_needs_a_stopping_rule_and_rejects_bad_values() {
+    let input = asset("half.xyz");
+    let input = input.to_str().unwrap();
+    for args in [
+        vec!["simplify", input],
+        vec!["simplify", input, "--target", "2"],
+        vec!["simplify", input, "--max-diameter", "-1"],
+        vec!["simplify", input, "--target", "50", "--density", "0"],
+        vec!["simplify", input, "--target", "50", "-k", "1"],
+    ] {
+        let out = run(&args);
+        assert_eq!(out.status.code(), Some(2), "{args:?}");
+        assert!(!out.stderr.is_empty());
+    }
+    // Both rules together: the threshold on an open surface, normals estimated.
+    let out = run(&["simplify", input, "--target", "40", "--max-diameter", "0.1"]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        text.contains("normals: estimated") && text.contains("1 loop(s)"),
+        "{text}"
+    );
+}

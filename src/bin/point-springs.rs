@@ -3,6 +3,8 @@
 //! ```text
 //! point-springs info FILE [--format F] [--json]
 //! point-springs normals FILE -o OUT.ply [-k K] [--format F] [--ascii] [--reestimate] [--json]
+//! point-springs simplify FILE (--target N | --max-diameter D) [-k K] [--density RHO]
+//!                        [-o OUT.ply] [--format F] [--ascii] [--json]
 //! ```
 //!
 //! Exit codes: 0 success, 2 bad input (unreadable or malformed file, bad arguments),
@@ -15,7 +17,11 @@ use std::time::Instant;
 use bevy_point_springs::core::PointCloud;
 use bevy_point_springs::core::io::{CloudFormat, PlyEncoding, read_cloud, write_ply};
 use bevy_point_springs::core::knn::KnnIndex;
+use bevy_point_springs::core::network::{DEFAULT_DENSITY, NetworkConfig, build_network};
 use bevy_point_springs::core::normals::{DEFAULT_NORMAL_K, NormalSource, ensure_normals};
+use bevy_point_springs::core::simplify::{
+    DEFAULT_SIMPLIFY_K, SimplifyConfig, SimplifyProgress, StopReason, simplify_with_progress,
+};
 use clap::{Parser, Subcommand};
 use serde::Serialize;
 
@@ -71,6 +77,63 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Choose simulation points (§3 tangent-plane Delaunay simplification) and build their
+    /// spring network (§4); normals are estimated first when the file has none.
+    #[command(group(clap::ArgGroup::new("stop").required(true).multiple(true).args(["target", "max_diameter"])))]
+    Simplify {
+        /// The cloud (.ply .xyz .pwn .off .obj).
+        file: PathBuf,
+        /// Stop when this many simulation points remain.
+        #[arg(long)]
+        target: Option<usize>,
+        /// Stop when every region R is at least this wide (the paper's threshold on d).
+        #[arg(long)]
+        max_diameter: Option<f32>,
+        /// Neighbours per point for the local Delaunay rings (the paper's k, 10–20).
+        #[arg(short, default_value_t = DEFAULT_SIMPLIFY_K)]
+        k: usize,
+        /// Surface density ρ (mass per unit area) for the masses m = ρ·area(R)/3.
+        #[arg(long, default_value_t = DEFAULT_DENSITY)]
+        density: f32,
+        /// Write the simulation points with their normals to this PLY file.
+        #[arg(short, long)]
+        output: Option<PathBuf>,
+        /// Read as this format instead of the one the extension names.
+        #[arg(long)]
+        format: Option<CloudFormat>,
+        /// Write ASCII PLY instead of binary little-endian.
+        #[arg(long)]
+        ascii: bool,
+        /// Print JSON instead of text.
+        #[arg(long)]
+        json: bool,
+    },
+}
+
+#[derive(Serialize)]
+struct SimplifyReport {
+    input: String,
+    output: Option<String>,
+    input_points: usize,
+    normals: &'static str,
+    k: usize,
+    density: f32,
+    sim_points: usize,
+    duplicates_removed: usize,
+    stop: &'static str,
+    stretch_springs: usize,
+    bend_springs: usize,
+    boundary_points: usize,
+    boundary_loops: usize,
+    components: usize,
+    total_mass: f32,
+    area: f32,
+    min_diameter: Option<f32>,
+    max_diameter: Option<f32>,
+    fallback_springs: usize,
+    simplify_seconds: f64,
+    network_seconds: f64,
+    seconds: f64,
 }
 
 #[derive(Serialize)]
@@ -250,6 +313,138 @@ fn run(command: Command) -> Result<(), Failure> {
                 Ok(())
             }
         }
+        Command::Simplify {
+            file,
+            target,
+            max_diameter,
+            k,
+            density,
+            output,
+            format,
+            ascii,
+            json,
+        } => {
+            let start = Instant::now();
+            let mut cloud = load(&file, format)?;
+            let source =
+                ensure_normals(&mut cloud, DEFAULT_NORMAL_K).map_err(Failure::bad_input)?;
+            let config = SimplifyConfig {
+                k,
+                target,
+                max_diameter,
+            };
+            let network_config = NetworkConfig { k, density };
+            // Check the network's settings before the long part.
+            if !(density > 0.0 && density.is_finite()) {
+                return Err(Failure::bad_input(format!(
+                    "the density must be a positive finite number, got {density}"
+                )));
+            }
+            let simplify_start = Instant::now();
+            let normals = cloud.normals().unwrap_or_default();
+            let kept =
+                simplify_with_progress(cloud.positions(), normals, &config, &mut show_progress)
+                    .map_err(Failure::bad_input)?;
+            if std::io::IsTerminal::is_terminal(&std::io::stderr()) {
+                eprintln!();
+            }
+            let simplify_seconds = simplify_start.elapsed().as_secs_f64();
+            let network_start = Instant::now();
+            let (positions, normals) = kept.gather(cloud.positions(), normals);
+            let network =
+                build_network(&positions, &normals, &network_config).map_err(Failure::bad_input)?;
+            let network_seconds = network_start.elapsed().as_secs_f64();
+            if let Some(path) = &output {
+                let sim = PointCloud::new(positions, Some(normals)).map_err(Failure::other)?;
+                let encoding = if ascii {
+                    PlyEncoding::Ascii
+                } else {
+                    PlyEncoding::BinaryLittleEndian
+                };
+                write_ply(path, &sim, encoding).map_err(Failure::other)?;
+            }
+            let r = network.report;
+            let finite = |v: f32| v.is_finite().then_some(v);
+            let report = SimplifyReport {
+                input: file.display().to_string(),
+                output: output.as_ref().map(|p| p.display().to_string()),
+                input_points: cloud.len(),
+                normals: match source {
+                    NormalSource::File => "file",
+                    NormalSource::Estimated(_) => "estimated",
+                },
+                k,
+                density,
+                sim_points: r.points,
+                duplicates_removed: kept.duplicates_removed,
+                stop: match kept.stop {
+                    StopReason::TargetReached => "target",
+                    StopReason::ThresholdReached => "max-diameter",
+                    StopReason::NothingRemovable => "nothing-removable",
+                },
+                stretch_springs: r.stretch_springs,
+                bend_springs: r.bend_springs,
+                boundary_points: r.boundary_points,
+                boundary_loops: r.boundary_loops,
+                components: r.components,
+                total_mass: r.total_mass,
+                area: r.area,
+                min_diameter: finite(r.min_diameter),
+                max_diameter: finite(r.max_diameter),
+                fallback_springs: r.fallback_springs,
+                simplify_seconds,
+                network_seconds,
+                seconds: start.elapsed().as_secs_f64(),
+            };
+            if json {
+                print_json(&report)
+            } else {
+                println!(
+                    "input         {} ({} points, normals: {})",
+                    report.input, report.input_points, report.normals
+                );
+                println!(
+                    "simulation    {} points (stopped by {}; {} duplicates removed)",
+                    report.sim_points, report.stop, report.duplicates_removed
+                );
+                println!(
+                    "springs       {} stretch, {} bend",
+                    report.stretch_springs, report.bend_springs
+                );
+                println!(
+                    "boundary      {} points in {} loop(s); {} component(s)",
+                    report.boundary_points, report.boundary_loops, report.components
+                );
+                println!(
+                    "mass          {} (ρ = {density}, area {})",
+                    report.total_mass, report.area
+                );
+                println!("region d      {} .. {}", r.min_diameter, r.max_diameter);
+                println!(
+                    "time          {:.3} s (simplify {:.3} s, network {:.3} s)",
+                    report.seconds, simplify_seconds, network_seconds
+                );
+                if let Some(out) = &report.output {
+                    println!("written       {out}");
+                }
+                Ok(())
+            }
+        }
+    }
+}
+
+/// Prints simplification progress on one terminal line (only when stderr is a terminal).
+fn show_progress(p: SimplifyProgress) {
+    use std::io::{IsTerminal, Write};
+    let mut err = std::io::stderr();
+    if err.is_terminal() {
+        let target = p.target.map_or_else(String::new, |t| format!(" → {t}"));
+        let _ = write!(
+            err,
+            "\rsimplify: {} points{target}, last d = {:.4}   ",
+            p.points, p.last_diameter
+        );
+        let _ = err.flush();
     }
 }
 

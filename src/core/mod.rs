@@ -2,15 +2,19 @@
 //!
 //! Data flows one way (see `DESIGN.md`):
 //! file ([`io`]) → [`cloud::PointCloud`] → [`normals`] (PCA over [`knn`] neighbourhoods,
-//! consistently oriented) → simplification → spring network → solver → transfer.
+//! consistently oriented) → [`simplify`] (§3, tangent-plane Delaunay [`ring`]s) →
+//! [`network`] (§4.1–4.2 springs and masses) → solver → transfer.
 //! [`shapes`] builds procedural test surfaces (sphere, hat, sheets); [`surfels`] the disc
 //! geometry the renderer draws.
 
 pub mod cloud;
 pub mod io;
 pub mod knn;
+pub mod network;
 pub mod normals;
+pub mod ring;
 pub mod shapes;
+pub mod simplify;
 pub mod surfels;
 
 pub use cloud::{Aabb, CloudError, PointCloud};

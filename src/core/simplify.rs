@@ -1,0 +1,678 @@
+//! Tangent-plane Delaunay simplification (the paper's §3): from a dense cloud to the
+//! *simulation points*.
+//!
+//! Every point gets its region R from the [local Delaunay ring](crate::core::ring) of its k
+//! nearest remaining neighbours; d is the diameter of R. The point with the smallest d is
+//! removed, repeatedly, until a target count is reached or every d exceeds a threshold (either
+//! rule, or both: the first one met stops). Removing a point changes the neighbourhood of the
+//! points that had it among their k nearest, and only those are re-evaluated:
+//!
+//! * a min-priority queue keyed by (d, index) holds every remaining point;
+//! * each point remembers its k nearest neighbours, and each point the list of points that
+//!   have it among theirs (reverse lists);
+//! * a removal marks the points of its reverse list *dirty* and leaves their queue entries as
+//!   they are (lazy update). A dirty point reaching the top of the queue is re-evaluated
+//!   and pushed back with its new d; a clean point at the top is removed.
+//! * neighbours come from a [kiddo] k-d tree that still holds removed points: a query asks
+//!   for twice k + 1 points and skips the removed ones, asking for more when too few remain.
+//!   The tree is rebuilt from the remaining points whenever a quarter of the points it holds
+//!   are gone. (kiddo's mutable tree cannot be built over flat data: a bucket of more than 32
+//!   points with one equal coordinate cannot be split.)
+//!
+//! Removing a neighbour almost always widens a ring, so a stale key is a lower bound of the
+//! true d and the clean point at the top really is the smallest. Before stopping on the
+//! threshold, every dirty point is re-evaluated once more, so the rule holds exactly: every
+//! remaining d is at least the threshold.
+//!
+//! Points that coincide with a neighbour have d = 0 and go first; they are removed even when
+//! the target count is reached, so simulation points never coincide. The result depends only
+//! on the input: the same cloud gives the same simulation points, bit for bit, whatever the
+//! thread count (ties in distance or d are broken by the points' rank along a Morton curve,
+//! the order the work runs in for memory locality).
+//!
+//! [kiddo]: https://crates.io/crates/kiddo
+
+use std::cmp::Reverse;
+use std::collections::BinaryHeap;
+use std::num::NonZeroUsize;
+
+use glam::Vec3;
+use kiddo::{ImmutableKdTree, SquaredEuclidean};
+use rayon::prelude::*;
+
+use crate::core::cloud::PointCloud;
+use crate::core::knn::morton_order;
+use crate::core::ring::{RingBuilder, RingShape};
+
+/// Default neighbourhood size (the paper recommends 10–20).
+pub const DEFAULT_SIMPLIFY_K: usize = 12;
+
+/// Smallest neighbourhood that can hold a closed ring.
+pub const MIN_SIMPLIFY_K: usize = 4;
+
+/// Largest neighbourhood accepted (a ring is rarely more than 8 points).
+pub const MAX_SIMPLIFY_K: usize = 64;
+
+/// Fewest simulation points a surface can have (a tetrahedron).
+pub const MIN_SIMULATION_POINTS: usize = 4;
+
+/// The k-d tree is rebuilt when REBUILD_DEAD of every REBUILD_OF points it holds are removed
+/// (queries must skip removed points; rebuilding costs about one initial pass of queries).
+const REBUILD_DEAD: usize = 1;
+/// See [`REBUILD_DEAD`].
+const REBUILD_OF: usize = 4;
+
+/// Points per rayon task when evaluating rings in bulk.
+const EVAL_CHUNK: usize = 512;
+
+/// Progress is reported about this many times over a run.
+const PROGRESS_STEPS: usize = 100;
+
+/// How far to simplify. At least one of `target` and `max_diameter` must be set.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SimplifyConfig {
+    /// Neighbours per point (the paper's k, 10–20 recommended).
+    pub k: usize,
+    /// Stop when this many points remain.
+    pub target: Option<usize>,
+    /// Stop when every remaining point's d is at least this (the paper's threshold).
+    pub max_diameter: Option<f32>,
+}
+
+impl SimplifyConfig {
+    /// Simplify to `target` points with the default k.
+    pub fn target(target: usize) -> Self {
+        Self {
+            k: DEFAULT_SIMPLIFY_K,
+            target: Some(target),
+            max_diameter: None,
+        }
+    }
+
+    /// Simplify until every region is at least `diameter` across, with the default k.
+    pub fn max_diameter(diameter: f32) -> Self {
+        Self {
+            k: DEFAULT_SIMPLIFY_K,
+            target: None,
+            max_diameter: Some(diameter),
+        }
+    }
+}
+
+/// Why a cloud could not be simplified.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum SimplifyError {
+    /// Neither a target count nor a diameter threshold was given.
+    #[error(
+        "simplification needs a stopping rule: a target point count, a diameter threshold, or both"
+    )]
+    NoStoppingRule,
+    /// k outside [`MIN_SIMPLIFY_K`]..=[`MAX_SIMPLIFY_K`].
+    #[error("k must be between {MIN_SIMPLIFY_K} and {MAX_SIMPLIFY_K}, got {0}")]
+    KOutOfRange(usize),
+    /// A target below [`MIN_SIMULATION_POINTS`].
+    #[error("the target must be at least {MIN_SIMULATION_POINTS} points, got {0}")]
+    TargetTooSmall(usize),
+    /// A threshold that is not a positive finite number.
+    #[error("the diameter threshold must be a positive finite number, got {0}")]
+    InvalidThreshold(f32),
+    /// Fewer points than k + 1.
+    #[error("simplification with k = {k} needs at least {needed} points, the cloud has {found}")]
+    TooFewPoints {
+        /// The k asked for.
+        k: usize,
+        /// Points needed (k + 1).
+        needed: usize,
+        /// Points given.
+        found: usize,
+    },
+    /// The cloud has no normals (tangent planes need them).
+    #[error("simplification needs normals; estimate them first (normals::ensure_normals)")]
+    NoNormals,
+    /// Positions and normals differ in length.
+    #[error("{positions} positions but {normals} normals")]
+    LengthMismatch {
+        /// Number of positions.
+        positions: usize,
+        /// Number of normals.
+        normals: usize,
+    },
+    /// A position or normal is not finite, or a normal is zero.
+    #[error("point {0} has a non-finite position or a zero or non-finite normal")]
+    InvalidPoint(usize),
+    /// Every neighbourhood projects to a line or a point: the cloud is not a surface.
+    #[error("no point has a surface neighbourhood (all points collinear or coincident)")]
+    NotASurface,
+    /// Point indices are stored in 32 bits.
+    #[error("simplification supports at most 2^32 - 1 points, the cloud has {0}")]
+    TooManyPoints(usize),
+}
+
+/// What ended a simplification.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum StopReason {
+    /// The target count was reached.
+    TargetReached,
+    /// Every remaining region is at least the threshold across.
+    ThresholdReached,
+    /// No remaining point can be removed (each has a degenerate neighbourhood).
+    NothingRemovable,
+}
+
+/// The simulation points chosen from a cloud.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Simplification {
+    /// Indices of the kept points in the input, ascending.
+    pub kept: Vec<u32>,
+    /// d (the diameter of R) of each kept point among the kept points, in `kept` order;
+    /// infinite where the neighbourhood is degenerate.
+    pub diameters: Vec<f32>,
+    /// Whether each kept point's ring is open (a boundary point), in `kept` order.
+    pub boundary: Vec<bool>,
+    /// Points removed in all.
+    pub removed: usize,
+    /// Of those, points removed because they coincided with a neighbour.
+    pub duplicates_removed: usize,
+    /// Ring evaluations performed (initial ones included): the cost of the lazy queue.
+    pub evaluations: usize,
+    /// What stopped the removal.
+    pub stop: StopReason,
+}
+
+impl Simplification {
+    /// The smallest d among the kept points (infinite if none is finite).
+    pub fn min_diameter(&self) -> f32 {
+        self.diameters.iter().copied().fold(f32::INFINITY, f32::min)
+    }
+
+    /// The kept points' positions and normals gathered from the input.
+    pub fn gather(&self, positions: &[Vec3], normals: &[Vec3]) -> (Vec<Vec3>, Vec<Vec3>) {
+        let pick = |v: &[Vec3]| self.kept.iter().map(|&i| v[i as usize]).collect();
+        (pick(positions), pick(normals))
+    }
+}
+
+/// Where a running simplification stands, for progress displays.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SimplifyProgress {
+    /// Points left.
+    pub points: usize,
+    /// Points removed so far.
+    pub removed: usize,
+    /// The target count, if one was given.
+    pub target: Option<usize>,
+    /// The d of the last removed point.
+    pub last_diameter: f32,
+}
+
+/// Simplifies a cloud with normals. See [`simplify`].
+pub fn simplify_cloud(
+    cloud: &PointCloud,
+    config: &SimplifyConfig,
+) -> Result<Simplification, SimplifyError> {
+    let normals = cloud.normals().ok_or(SimplifyError::NoNormals)?;
+    simplify(cloud.positions(), normals, config)
+}
+
+/// Chooses simulation points from `positions` with unit `normals` (consistently oriented or
+/// not: only the tangent planes matter).
+pub fn simplify(
+    positions: &[Vec3],
+    normals: &[Vec3],
+    config: &SimplifyConfig,
+) -> Result<Simplification, SimplifyError> {
+    simplify_with_progress(positions, normals, config, &mut |_| {})
+}
+
+/// [`simplify`], calling `progress` about [`PROGRESS_STEPS`] times along the way.
+pub fn simplify_with_progress(
+    positions: &[Vec3],
+    normals: &[Vec3],
+    config: &SimplifyConfig,
+    progress: &mut dyn FnMut(SimplifyProgress),
+) -> Result<Simplification, SimplifyError> {
+    validate(positions, normals, config)?;
+    // Work in Morton order: neighbours then sit close in memory (positions, neighbour rows,
+    // reverse lists), which matters when removals jump around a large cloud.
+    let order = morton_order(positions);
+    let sorted: Vec<Vec3> = order.iter().map(|&i| positions[i as usize]).collect();
+    let sorted_normals: Vec<Vec3> = order.iter().map(|&i| normals[i as usize]).collect();
+    let mut state = State::new(&sorted, &sorted_normals, config.k);
+    state.evaluate_all();
+    if state.shapes.iter().all(|s| s.degenerate) {
+        return Err(SimplifyError::NotASurface);
+    }
+    let floor = config
+        .target
+        .unwrap_or(MIN_SIMULATION_POINTS)
+        .max(MIN_SIMULATION_POINTS);
+    let stop = state.run(floor, config, progress);
+    let mut result = state.finish(stop);
+    // Back to input indices, ascending.
+    let mut back: Vec<(u32, f32, bool)> = result
+        .kept
+        .iter()
+        .zip(&result.diameters)
+        .zip(&result.boundary)
+        .map(|((&i, &d), &b)| (order[i as usize], d, b))
+        .collect();
+    back.sort_unstable_by_key(|&(i, _, _)| i);
+    result.kept = back.iter().map(|t| t.0).collect();
+    result.diameters = back.iter().map(|t| t.1).collect();
+    result.boundary = back.iter().map(|t| t.2).collect();
+    Ok(result)
+}
+
+fn validate(
+    positions: &[Vec3],
+    normals: &[Vec3],
+    config: &SimplifyConfig,
+) -> Result<(), SimplifyError> {
+    if config.target.is_none() && config.max_diameter.is_none() {
+        return Err(SimplifyError::NoStoppingRule);
+    }
+    if !(MIN_SIMPLIFY_K..=MAX_SIMPLIFY_K).contains(&config.k) {
+        return Err(SimplifyError::KOutOfRange(config.k));
+    }
+    if let Some(t) = config.target
+        && t < MIN_SIMULATION_POINTS
+    {
+        return Err(SimplifyError::TargetTooSmall(t));
+    }
+    if let Some(d) = config.max_diameter
+        && !(d > 0.0 && d.is_finite())
+    {
+        return Err(SimplifyError::InvalidThreshold(d));
+    }
+    if positions.len() != normals.len() {
+        return Err(SimplifyError::LengthMismatch {
+            positions: positions.len(),
+            normals: normals.len(),
+        });
+    }
+    if positions.len() >= u32::MAX as usize {
+        return Err(SimplifyError::TooManyPoints(positions.len()));
+    }
+    if positions.len() < config.k + 1 {
+        return Err(SimplifyError::TooFewPoints {
+            k: config.k,
+            needed: config.k + 1,
+            found: positions.len(),
+        });
+    }
+    if let Some(i) = positions
+        .iter()
+        .zip(normals)
+        .position(|(p, n)| !p.is_finite() || !n.is_finite() || n.length_squared() == 0.0)
+    {
+        return Err(SimplifyError::InvalidPoint(i));
+    }
+    Ok(())
+}
+
+/// Marks an unused neighbour slot.
+const NONE: u32 = u32::MAX;
+
+/// Per-thread scratch space for evaluations.
+#[derive(Default)]
+struct Scratch {
+    builder: RingBuilder,
+    points: Vec<Vec3>,
+    ring: Vec<(u32, bool)>,
+    found: Vec<(f32, u32)>,
+}
+
+/// The removal state.
+struct State<'a> {
+    positions: &'a [Vec3],
+    normals: Vec<Vec3>,
+    k: usize,
+    /// Tree over the points remaining when it was built; its items index `tree_ids`.
+    tree: ImmutableKdTree<f32, 3>,
+    tree_ids: Vec<u32>,
+    /// Points the tree was built with.
+    tree_built_with: usize,
+    /// Each point's k nearest remaining neighbours at its last evaluation (`NONE`-padded).
+    knn: Vec<u32>,
+    /// For each point, the points whose `knn` row holds it.
+    rev: Vec<Vec<u32>>,
+    shapes: Vec<RingShape>,
+    /// Which slots of each point's `knn` row are ring vertices (bit r = slot r).
+    ring_mask: Vec<u64>,
+    alive: Vec<bool>,
+    dirty: Vec<bool>,
+    generation: Vec<u32>,
+    heap: BinaryHeap<Reverse<(u32, u32, u32)>>,
+    left: usize,
+    removed: usize,
+    duplicates_removed: usize,
+    evaluations: usize,
+    scratch: Scratch,
+}
+
+/// Priority of a shape: its d; 0 for a point with a coincident neighbour; the smallest
+/// positive float for a point without a surface neighbourhood (a thread of points, a tight
+/// ring that projects to an arc), so it goes right after duplicates but within the rules.
+/// Non-negative floats order like their bit patterns.
+fn priority(shape: &RingShape) -> f32 {
+    if shape.coincident {
+        0.0
+    } else if shape.degenerate {
+        f32::MIN_POSITIVE
+    } else {
+        shape.diameter
+    }
+}
+
+impl<'a> State<'a> {
+    fn new(positions: &'a [Vec3], normals: &[Vec3], k: usize) -> Self {
+        let n = positions.len();
+        let ids: Vec<u32> = (0..n as u32).collect();
+        let (tree, tree_ids) = build_tree(positions, ids);
+        Self {
+            positions,
+            normals: normals.iter().map(|v| v.normalize_or_zero()).collect(),
+            k,
+            tree,
+            tree_ids,
+            tree_built_with: n,
+            knn: vec![NONE; n * k],
+            rev: vec![Vec::new(); n],
+            shapes: vec![RingShape::default(); n],
+            ring_mask: vec![0; n],
+            alive: vec![true; n],
+            dirty: vec![false; n],
+            generation: vec![0; n],
+            heap: BinaryHeap::with_capacity(n),
+            left: n,
+            removed: 0,
+            duplicates_removed: 0,
+            evaluations: 0,
+            scratch: Scratch::default(),
+        }
+    }
+
+    /// Evaluates every remaining point in parallel (the initial pass).
+    fn evaluate_all(&mut self) {
+        let all: Vec<u32> = (0..self.positions.len() as u32).collect();
+        self.evaluate_batch(&all);
+    }
+
+    /// Re-evaluates `points` in parallel against the current tree and requeues them.
+    fn evaluate_batch(&mut self, points: &[u32]) {
+        let k = self.k;
+        let results: Vec<(RingShape, u64, Vec<u32>)> = {
+            let this = &*self;
+            points
+                .par_iter()
+                .with_min_len(EVAL_CHUNK)
+                .map_init(Scratch::default, |scratch, &i| {
+                    let mut row = vec![NONE; k];
+                    let (shape, mask) = this.evaluate(i, scratch, &mut row);
+                    (shape, mask, row)
+                })
+                .collect()
+        };
+        for (&i, (shape, mask, row)) in points.iter().zip(results) {
+            self.apply(i, shape, mask, &row);
+        }
+    }
+
+    /// The ring shape of point `i` among the remaining points and which slots of its
+    /// neighbour row (written to `row`) are ring vertices.
+    fn evaluate(&self, i: u32, scratch: &mut Scratch, row: &mut [u32]) -> (RingShape, u64) {
+        let p = self.positions[i as usize];
+        // The tree still holds removed points, at most a fraction REBUILD_DEAD / REBUILD_OF: ask
+        // for enough that k + 1 remaining ones are likely among the answers.
+        let mut want = (self.k + 1) * self.tree_ids.len() / self.left.max(1) + 1;
+        let found = &mut scratch.found;
+        loop {
+            let asked = want.min(self.tree_ids.len());
+            found.clear();
+            found.extend(
+                self.tree
+                    .query(&p.to_array())
+                    .nearest_n::<SquaredEuclidean<f32>>(
+                        NonZeroUsize::new(asked).unwrap_or(NonZeroUsize::MIN),
+                    )
+                    .execute()
+                    .into_iter()
+                    .map(|nb| (nb.distance, self.tree_ids[nb.item as usize]))
+                    .filter(|&(_, j)| j != i && self.alive[j as usize]),
+            );
+            if found.len() >= self.k || asked == self.tree_ids.len() {
+                break;
+            }
+            want *= 2;
+        }
+        found.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        found.truncate(self.k);
+        scratch.points.clear();
+        for (slot, &(_, j)) in row.iter_mut().zip(found.iter()) {
+            *slot = j;
+            scratch.points.push(self.positions[j as usize]);
+        }
+        scratch.ring.clear();
+        let shape = scratch.builder.build(
+            p,
+            self.normals[i as usize],
+            &scratch.points,
+            Some(&mut scratch.ring),
+        );
+        let mask = scratch
+            .ring
+            .iter()
+            .fold(0u64, |m, &(slot, _)| m | (1u64 << slot));
+        (shape, mask)
+    }
+
+    /// Records a fresh evaluation of `i` and queues it.
+    fn apply(&mut self, i: u32, shape: RingShape, mask: u64, row: &[u32]) {
+        let k = self.k;
+        let iu = i as usize;
+        // Only neighbours that left or entered the row change reverse lists (usually one or
+        // two of k).
+        let old_row = &self.knn[iu * k..(iu + 1) * k];
+        for &old in old_row {
+            if old != NONE
+                && !row.contains(&old)
+                && let Some(pos) = self.rev[old as usize].iter().position(|&x| x == i)
+            {
+                self.rev[old as usize].swap_remove(pos);
+            }
+        }
+        for &new in row {
+            if new != NONE && !self.knn[iu * k..(iu + 1) * k].contains(&new) {
+                self.rev[new as usize].push(i);
+            }
+        }
+        self.knn[iu * k..(iu + 1) * k].copy_from_slice(row);
+        self.shapes[iu] = shape;
+        self.ring_mask[iu] = mask;
+        self.dirty[iu] = false;
+        self.generation[iu] = self.generation[iu].wrapping_add(1);
+        self.evaluations += 1;
+        self.heap.push(Reverse((
+            priority(&shape).to_bits(),
+            i,
+            self.generation[iu],
+        )));
+    }
+
+    /// Re-evaluates one point (sequential path).
+    fn reevaluate(&mut self, i: u32) {
+        let mut scratch = std::mem::take(&mut self.scratch);
+        let mut row = [NONE; MAX_SIMPLIFY_K];
+        let k = self.k;
+        let (shape, mask) = self.evaluate(i, &mut scratch, &mut row[..k]);
+        self.scratch = scratch;
+        self.apply(i, shape, mask, &row[..k]);
+    }
+
+    /// Removes point `i`.
+    fn remove(&mut self, i: u32) {
+        let iu = i as usize;
+        self.alive[iu] = false;
+        self.left -= 1;
+        self.removed += 1;
+        let k = self.k;
+        for q in std::mem::take(&mut self.rev[iu]) {
+            let qu = q as usize;
+            if !self.alive[qu] {
+                continue;
+            }
+            // Only a point whose ring holds `i` changes (or one whose ring is open, degenerate
+            // or has a coincident neighbour, which is not in its ring): deleting a vertex
+            // from a Delaunay triangulation re-triangulates that vertex's star only.
+            let row = &self.knn[qu * k..(qu + 1) * k];
+            let in_ring = row
+                .iter()
+                .position(|&j| j == i)
+                .is_some_and(|slot| self.ring_mask[qu] & (1u64 << slot) != 0);
+            if in_ring
+                || self.shapes[qu].open
+                || self.shapes[qu].degenerate
+                || self.shapes[qu].coincident
+            {
+                self.dirty[qu] = true;
+            }
+        }
+        // Drop `i` from its neighbours' reverse lists.
+        for slot in iu * k..(iu + 1) * k {
+            let j = self.knn[slot];
+            if j != NONE
+                && let Some(pos) = self.rev[j as usize].iter().position(|&x| x == i)
+            {
+                self.rev[j as usize].swap_remove(pos);
+            }
+            self.knn[slot] = NONE;
+        }
+        if (self.tree_built_with - self.left) * REBUILD_OF > self.tree_built_with * REBUILD_DEAD {
+            let ids: Vec<u32> = (0..self.positions.len() as u32)
+                .filter(|&j| self.alive[j as usize])
+                .collect();
+            let (tree, ids) = build_tree(self.positions, ids);
+            self.tree = tree;
+            self.tree_ids = ids;
+            self.tree_built_with = self.left;
+        }
+    }
+
+    /// Removes points until a stopping rule holds.
+    fn run(
+        &mut self,
+        floor: usize,
+        config: &SimplifyConfig,
+        progress: &mut dyn FnMut(SimplifyProgress),
+    ) -> StopReason {
+        let total = self.left.saturating_sub(floor).max(1);
+        let step = (total / PROGRESS_STEPS).max(1);
+        loop {
+            let stop = self.remove_until_stop(floor, config, progress, step);
+            if stop != StopReason::ThresholdReached {
+                return stop;
+            }
+            // Make the threshold rule exact: refresh every stale key, then go on if one of
+            // them fell below the threshold.
+            let stale: Vec<u32> = (0..self.positions.len() as u32)
+                .filter(|&i| self.alive[i as usize] && self.dirty[i as usize])
+                .collect();
+            if stale.is_empty() {
+                return stop;
+            }
+            self.evaluate_batch(&stale);
+            let threshold = config.max_diameter.unwrap_or(f32::INFINITY);
+            let below = stale
+                .iter()
+                .any(|&i| priority(&self.shapes[i as usize]) < threshold);
+            if !below {
+                return stop;
+            }
+        }
+    }
+
+    fn remove_until_stop(
+        &mut self,
+        floor: usize,
+        config: &SimplifyConfig,
+        progress: &mut dyn FnMut(SimplifyProgress),
+        step: usize,
+    ) -> StopReason {
+        let threshold = config.max_diameter.unwrap_or(f32::INFINITY);
+        while let Some(Reverse((bits, i, generation))) = self.heap.pop() {
+            let iu = i as usize;
+            if !self.alive[iu] || generation != self.generation[iu] {
+                continue;
+            }
+            if self.dirty[iu] {
+                self.reevaluate(i);
+                continue;
+            }
+            let d = f32::from_bits(bits);
+            let duplicate = d == 0.0 && self.left > MIN_SIMULATION_POINTS;
+            if !duplicate {
+                let stop = if self.left <= floor {
+                    Some(StopReason::TargetReached)
+                } else if d >= threshold {
+                    Some(StopReason::ThresholdReached)
+                } else if d.is_infinite() {
+                    Some(StopReason::NothingRemovable)
+                } else {
+                    None
+                };
+                if let Some(stop) = stop {
+                    self.heap.push(Reverse((bits, i, generation)));
+                    return stop;
+                }
+            } else {
+                self.duplicates_removed += 1;
+            }
+            self.remove(i);
+            if self.removed.is_multiple_of(step) {
+                progress(SimplifyProgress {
+                    points: self.left,
+                    removed: self.removed,
+                    target: config.target,
+                    last_diameter: d,
+                });
+            }
+        }
+        StopReason::NothingRemovable
+    }
+
+    /// Refreshes stale points and collects the result.
+    fn finish(mut self, stop: StopReason) -> Simplification {
+        let stale: Vec<u32> = (0..self.positions.len() as u32)
+            .filter(|&i| self.alive[i as usize] && self.dirty[i as usize])
+            .collect();
+        self.evaluate_batch(&stale);
+        let kept: Vec<u32> = (0..self.positions.len() as u32)
+            .filter(|&i| self.alive[i as usize])
+            .collect();
+        let diameters = kept
+            .iter()
+            .map(|&i| self.shapes[i as usize].diameter)
+            .collect();
+        let boundary = kept.iter().map(|&i| self.shapes[i as usize].open).collect();
+        Simplification {
+            kept,
+            diameters,
+            boundary,
+            removed: self.removed,
+            duplicates_removed: self.duplicates_removed,
+            evaluations: self.evaluations,
+            stop,
+        }
+    }
+}
+
+/// A k-d tree over the points `ids` of `positions`; items index the returned id list.
+fn build_tree(positions: &[Vec3], ids: Vec<u32>) -> (ImmutableKdTree<f32, 3>, Vec<u32>) {
+    let coords: Vec<[f32; 3]> = ids
+        .iter()
+        .map(|&i| positions[i as usize].to_array())
+        .collect();
+    // Construction fails only beyond u32::MAX points, which `validate` rules out.
+    let tree = ImmutableKdTree::new_from_slice(&coords).unwrap_or_default();
+    (tree, ids)
+}
