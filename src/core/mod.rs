@@ -3,7 +3,8 @@
 //! Data flows one way (see `DESIGN.md`):
 //! file ([`io`]) → [`cloud::PointCloud`] → [`normals`] (PCA over [`knn`] neighbourhoods,
 //! consistently oriented) → [`simplify`] (§3, tangent-plane Delaunay [`ring`]s) →
-//! [`network`] (§4.1–4.2 springs and masses) → solver → transfer.
+//! [`network`] (§4.1–4.2 springs and masses) → [`solver`] (eq 2–6: forces, integrators,
+//! stability) → transfer.
 //! [`shapes`] builds procedural test surfaces (sphere, hat, sheets); [`surfels`] the disc
 //! geometry the renderer draws.
 
@@ -15,6 +16,7 @@ pub mod normals;
 pub mod ring;
 pub mod shapes;
 pub mod simplify;
+pub mod solver;
 pub mod surfels;
 
 pub use cloud::{Aabb, CloudError, PointCloud};
