@@ -192,3 +192,49 @@ fn simplify_needs_a_stopping_rule_and_rejects_bad_values() {
         "{text}"
     );
 }
+
+#[test]
+fn bench_cloth_grid_reports_speed_and_sag() {
+    let out = run(&[
+        "bench",
+        "cloth-grid",
+        "--size",
+        "12",
+        "--steps",
+        "200",
+        "--repeat",
+        "1",
+        "--json",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["particles"], 144);
+    // 12×12: 132 + 120 horizontal, 2·121 diagonal, 132 + 120 vertical.
+    assert_eq!(v["springs"], 746);
+    assert_eq!(v["steps"], 200);
+    assert_eq!(v["integrator"], "symplectic-euler");
+    assert_eq!(v["finite"], true);
+    assert!(v["us_per_step"].as_f64().unwrap() > 0.0);
+    assert!(v["reference_us_per_step"].as_f64().unwrap() > 0.0);
+    let sag = v["max_sag"].as_f64().unwrap();
+    assert!(sag > 0.1, "{sag}");
+    assert!(v["sag_difference"].as_f64().unwrap() < 1e-3);
+
+    let text = run(&["bench", "cloth-grid", "--size", "4", "--steps", "10"]);
+    assert!(text.status.success());
+    assert!(String::from_utf8(text.stdout).unwrap().contains("speedup"));
+
+    for args in [
+        &["bench", "cloth-grid", "--size", "1"][..],
+        &["bench", "cloth-grid", "--integrator", "leapfrog"],
+        &["bench", "cloth-grid", "--size", "100000"],
+    ] {
+        let out = run(args);
+        assert_eq!(out.status.code(), Some(2), "{args:?}");
+        assert!(!out.stderr.is_empty());
+    }
+}

@@ -5,6 +5,8 @@
 //! point-springs normals FILE -o OUT.ply [-k K] [--format F] [--ascii] [--reestimate] [--json]
 //! point-springs simplify FILE (--target N | --max-diameter D) [-k K] [--density RHO]
 //!                        [-o OUT.ply] [--format F] [--ascii] [--json]
+//! point-springs bench cloth-grid [--size N] [--steps S] [--integrator I] [--repeat R]
+//!                        [--no-reference] [--json]
 //! ```
 //!
 //! Exit codes: 0 success, 2 bad input (unreadable or malformed file, bad arguments),
@@ -22,6 +24,10 @@ use bevy_point_springs::core::normals::{DEFAULT_NORMAL_K, NormalSource, ensure_n
 use bevy_point_springs::core::simplify::{
     DEFAULT_SIMPLIFY_K, SimplifyConfig, SimplifyProgress, StopReason, simplify_with_progress,
 };
+use bevy_point_springs::core::solver::cloth::{
+    CLOTH_DT, CLOTH_SIZE, CLOTH_STEPS, ReferenceCloth, cloth_grid, max_sag,
+};
+use bevy_point_springs::core::solver::{Integrator, SubstepPolicy};
 use clap::{Parser, Subcommand};
 use serde::Serialize;
 
@@ -34,7 +40,7 @@ const EXIT_FAILURE: u8 = 1;
 #[command(
     name = "point-springs",
     version,
-    about = "Point-sampled surfaces: inspect, prepare and (soon) simulate them"
+    about = "Point-sampled surfaces: inspect, prepare and simulate them"
 )]
 struct Cli {
     #[command(subcommand)]
@@ -108,6 +114,59 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Time the solver on standard networks.
+    Bench {
+        #[command(subcommand)]
+        case: BenchCase,
+    },
+}
+
+#[derive(Subcommand)]
+enum BenchCase {
+    /// The standard CPU cloth benchmark: a 32×32 grid with 5826 springs hanging from two
+    /// corners, symplectic Euler at dt = 1/960 for 1000 steps, timed against the
+    /// straightforward loop over the springs in the same run (one thread).
+    ClothGrid {
+        /// Particles per side.
+        #[arg(long, default_value_t = CLOTH_SIZE)]
+        size: usize,
+        /// Steps per run.
+        #[arg(long, default_value_t = CLOTH_STEPS)]
+        steps: usize,
+        /// Integrator (the benchmark's is symplectic-euler; others take the same dt as
+        /// given).
+        #[arg(long, default_value_t = Integrator::SymplecticEuler)]
+        integrator: Integrator,
+        /// Timed runs of each; the fastest counts.
+        #[arg(long, default_value_t = 3)]
+        repeat: usize,
+        /// Skip the straightforward reference loop.
+        #[arg(long)]
+        no_reference: bool,
+        /// Print JSON instead of text.
+        #[arg(long)]
+        json: bool,
+    },
+}
+
+#[derive(Serialize)]
+struct ClothBenchReport {
+    benchmark: &'static str,
+    particles: usize,
+    springs: usize,
+    springs_in_runs: usize,
+    steps: usize,
+    dt: f32,
+    integrator: String,
+    us_per_step: f64,
+    max_sag: f32,
+    finite: bool,
+    cg_iterations: u64,
+    reference_us_per_step: Option<f64>,
+    reference_max_sag: Option<f32>,
+    sag_difference: Option<f32>,
+    max_position_difference: Option<f32>,
+    speedup: Option<f64>,
 }
 
 #[derive(Serialize)]
@@ -208,6 +267,7 @@ fn load(file: &std::path::Path, format: Option<CloudFormat>) -> Result<PointClou
 
 fn run(command: Command) -> Result<(), Failure> {
     match command {
+        Command::Bench { case } => bench(case),
         Command::Info { file, format, json } => {
             let cloud = load(&file, format)?;
             let bounds = cloud
@@ -431,6 +491,116 @@ fn run(command: Command) -> Result<(), Failure> {
             }
         }
     }
+}
+
+/// Times `steps` steps of `step`, `repeat` times from a fresh state; the fastest run's
+/// microseconds per step.
+fn time_steps<S>(
+    repeat: usize,
+    steps: usize,
+    mut fresh: impl FnMut() -> S,
+    mut step: impl FnMut(&mut S),
+) -> (f64, S) {
+    let mut best = f64::INFINITY;
+    let mut last = fresh();
+    for _ in 0..repeat.max(1) {
+        let mut state = fresh();
+        let start = Instant::now();
+        for _ in 0..steps {
+            step(&mut state);
+        }
+        best = best.min(start.elapsed().as_secs_f64() * 1e6 / steps.max(1) as f64);
+        last = state;
+    }
+    (best, last)
+}
+
+fn bench(case: BenchCase) -> Result<(), Failure> {
+    let BenchCase::ClothGrid {
+        size,
+        steps,
+        integrator,
+        repeat,
+        no_reference,
+        json,
+    } = case;
+    let grid = cloth_grid(size).map_err(Failure::bad_input)?;
+    let solver = grid
+        .solver_with(integrator, SubstepPolicy::Unchecked)
+        .map_err(Failure::bad_input)?;
+    let (us_per_step, solver) = time_steps(
+        repeat,
+        steps,
+        || solver.clone(),
+        |s| {
+            // The step is valid by construction; a guard trip shows in `finite` and the
+            // diagnostics.
+            let _ = s.step(CLOTH_DT);
+        },
+    );
+    let positions = solver.positions();
+    let sag = max_sag(&grid.positions, &positions);
+    let diagnostics = solver.diagnostics();
+    let reference = (!no_reference).then(|| {
+        time_steps(
+            repeat,
+            steps,
+            || ReferenceCloth::new(&grid),
+            |r| r.step(CLOTH_DT),
+        )
+    });
+    let reference_sag = reference
+        .as_ref()
+        .map(|(_, r)| max_sag(&grid.positions, &r.x));
+    let report = ClothBenchReport {
+        benchmark: "cloth-grid",
+        particles: solver.len(),
+        springs: solver.spring_count(),
+        springs_in_runs: solver.springs_in_runs(),
+        steps,
+        dt: CLOTH_DT,
+        integrator: integrator.to_string(),
+        us_per_step,
+        max_sag: sag,
+        finite: diagnostics.guard_trips == 0 && positions.iter().all(|p| p.is_finite()),
+        cg_iterations: diagnostics.cg_iterations,
+        reference_us_per_step: reference.as_ref().map(|(t, _)| *t),
+        reference_max_sag: reference_sag,
+        sag_difference: reference_sag.map(|r| (r - sag).abs()),
+        max_position_difference: reference.as_ref().map(|(_, r)| {
+            r.x.iter()
+                .zip(&positions)
+                .map(|(a, b)| a.distance(*b))
+                .fold(0.0, f32::max)
+        }),
+        speedup: reference.as_ref().map(|(t, _)| t / us_per_step),
+    };
+    if json {
+        return print_json(&report);
+    }
+    println!(
+        "cloth-grid    {} particles, {} springs ({} in vectorised runs), {} steps of {:.6} s, {}",
+        report.particles,
+        report.springs,
+        report.springs_in_runs,
+        report.steps,
+        report.dt,
+        report.integrator
+    );
+    println!(
+        "solver        {:.2} µs/step, max sag {:.6}",
+        report.us_per_step, report.max_sag
+    );
+    if let (Some(t), Some(s), Some(d), Some(x)) = (
+        report.reference_us_per_step,
+        report.reference_max_sag,
+        report.speedup,
+        report.max_position_difference,
+    ) {
+        println!("reference     {t:.2} µs/step, max sag {s:.6}");
+        println!("speedup       {d:.2}×; final positions differ by at most {x:.2e}");
+    }
+    Ok(())
 }
 
 /// Prints simplification progress on one terminal line (only when stderr is a terminal).
