@@ -224,7 +224,7 @@ pub fn simplify(
     simplify_with_progress(positions, normals, config, &mut |_| {})
 }
 
-/// [`simplify`], calling `progress` about [`PROGRESS_STEPS`] times along the way.
+/// [`simplify`], calling `progress` about a hundred times along the way.
 pub fn simplify_with_progress(
     positions: &[Vec3],
     normals: &[Vec3],
