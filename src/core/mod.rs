@@ -4,7 +4,9 @@
 //! file ([`io`]) → [`cloud::PointCloud`] → [`normals`] (PCA over [`knn`] neighbourhoods,
 //! consistently oriented) → [`simplify`] (§3, tangent-plane Delaunay [`ring`]s) →
 //! [`network`] (§4.1–4.2 springs and masses) → [`solver`] (eq 2–6: forces, integrators,
-//! stability) → transfer.
+//! stability) → [`transfer`] (§5: precomputed least-squares coefficients, normals from
+//! the fitted gradient; [`resample`] fills stretched regions).
+//! [`scene`] describes a whole deformation in a RON file and runs it headless.
 //! [`shapes`] builds procedural test surfaces (sphere, hat, sheets); [`surfels`] the disc
 //! geometry the renderer draws.
 
@@ -13,10 +15,13 @@ pub mod io;
 pub mod knn;
 pub mod network;
 pub mod normals;
+pub mod resample;
 pub mod ring;
+pub mod scene;
 pub mod shapes;
 pub mod simplify;
 pub mod solver;
 pub mod surfels;
+pub mod transfer;
 
 pub use cloud::{Aabb, CloudError, PointCloud};

@@ -167,7 +167,9 @@ impl Soa3 {
 }
 
 /// How a solver advances time.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, Hash, Default, serde::Serialize, serde::Deserialize,
+)]
 pub enum Integrator {
     /// Forward Euler, the paper's choice: x += v·h, v += a·h, both from the old state. First
     /// order; amplifies undamped oscillation at any step, so it needs spring damping.
@@ -227,7 +229,9 @@ impl std::str::FromStr for Integrator {
 }
 
 /// Which velocity the spring damping acts on.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, Hash, Default, serde::Serialize, serde::Deserialize,
+)]
 pub enum DampingModel {
     /// The paper's eq 3: k_d·(v_b − v_a), the whole relative velocity (also damps sliding
     /// and bending motion across the spring).

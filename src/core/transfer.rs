@@ -1,0 +1,805 @@
+//! Displacement transfer (the paper's §5, eq 7–12): from the simulation points back to every
+//! dense point.
+//!
+//! For each dense point p with unit normal n, its k nearest simulation points *in the rest
+//! state* are expressed in p's tangent frame (t₁, t₂, n): coordinates (x̄, ȳ) in the plane,
+//! z̄ along the normal. Each displacement component u is fitted by weighted linear least
+//! squares with Gaussian weights w = exp(−r²/h²), r the distance from p to a neighbour's
+//! projection on the plane and h = `bandwidth` × the distance to the farthest neighbour. The fitted value at p,
+//! u(p) = a₀ = e₀ᵀA⁻¹PᵀWu, is a fixed linear combination Σⱼ cⱼuⱼ of the neighbours'
+//! displacements, and so are the tangent derivatives a₁ = ∂u/∂x̄ and a₂ = ∂u/∂ȳ. Those
+//! coefficients are computed once ([`Transfer::new`], in parallel); each frame is then a
+//! sparse matrix–vector product over the displacements ([`Transfer::apply`], in parallel).
+//!
+//! **The normal coordinate.** The paper fits u = a₀ + a₁x̄ + a₂ȳ on the plane. On a curved
+//! surface the neighbours sit off the plane by z̄ ≈ r²/2R, and an affine motion of them
+//! (a rotation, say) moves them by M·(x̄t₁ + ȳt₂ + z̄n): the plane fit cannot follow the z̄
+//! part, so even a rigid rotation would be transferred with an error growing with
+//! curvature. So the fit is u = a₀ + a₁x̄ + a₂ȳ + a₃z̄, which reproduces every affine
+//! displacement exactly, wherever the neighbours leave the plane (no Cholesky pivot below
+//! [`FULL_FIT_PIVOT`]) and the fit does not amplify noise in the displacements more than
+//! [`MAX_AMPLIFICATION`] times (Σ|cⱼ|; 1.0–1.7 on spheres of 338 to 10^4 simulation
+//! points); elsewhere it is the paper's plane fit, exact on coplanar neighbours. Where even the
+//! plane fit is singular (collinear neighbours, fewer than three) the slopes are damped by
+//! a ridge term: the value then tends to a weighted mean, never NaN.
+//!
+//! **Normals.** The deformed tangents are t₁ + a₁ and t₂ + a₂ (a₁, a₂ the fitted
+//! derivatives of the displacement), the deformed normal their cross product: exact for
+//! any affine motion, and no k-NN search or PCA per frame. [`pca_normals_of`] recomputes
+//! normals the paper's way, for comparison; [`literal_transfer`] is the paper's whole
+//! per-frame method, kept as the baseline the precomputed transfer is measured against.
+
+use glam::{DVec3, Vec3, Vec3A, Vec3Swizzles, Vec4};
+use rayon::prelude::*;
+
+use crate::core::knn::KnnIndex;
+use crate::core::normals::pca_normals;
+
+/// Default number of simulation points each dense point follows (`point-springs bench
+/// transfer` measures k against error: 10 is as accurate as 12 and a sixth cheaper per frame).
+pub const DEFAULT_TRANSFER_K: usize = 10;
+
+/// Largest k accepted.
+pub const MAX_TRANSFER_K: usize = 32;
+
+/// Most simulation points a transfer follows: indices are stored in the 23 mantissa bits of
+/// an `f32` beside the coefficients.
+pub const MAX_SIMULATION_POINTS: usize = 1 << 23;
+
+/// The exponent bits that make a stored index a normal number in [2, 4): never a denormal,
+/// whose arithmetic is slow on many processors, nor a NaN.
+const INDEX_TAG: u32 = 0x4000_0000;
+/// The mantissa bits, which hold the index.
+const INDEX_MASK: u32 = (1 << 23) - 1;
+
+/// Default Gaussian bandwidth, as a multiple of the farthest neighbour's distance: the
+/// farthest then weighs e⁻⁴ ≈ 2 % (the fit changes little when the neighbour set changes
+/// from one dense point to the next), and the error against a known smooth deformation is
+/// 2 to 5 times smaller than at 1.0 (`point-springs bench transfer`).
+pub const DEFAULT_BANDWIDTH: f32 = 0.5;
+
+/// The fit with the normal coordinate needs its Cholesky pivots above this fraction of the
+/// largest (in coordinates scaled by h): the neighbours must not be coplanar.
+pub const FULL_FIT_PIVOT: f64 = 1.0e-10;
+
+/// ...and it is kept only when the sum of the absolute value coefficients, Σ|cⱼ| — how much
+/// it can amplify noise in the displacements (1 for a weighted mean) — is at most this.
+pub const MAX_AMPLIFICATION: f64 = 3.0;
+
+/// The plane fit is taken as singular below this relative pivot.
+const PLANE_FIT_PIVOT: f64 = 1.0e-8;
+
+/// Ridge weight on the slopes of a singular fit, relative to the total weight.
+const RIDGE: f64 = 1.0e-3;
+
+/// Dense points per parallel task.
+const CHUNK: usize = 2048;
+
+/// Per-frame work is split in at least this many pieces (so small clouds still keep every
+/// thread busy), of at least [`MIN_FRAME_CHUNK`] points.
+const FRAME_PIECES: usize = 16;
+const MIN_FRAME_CHUNK: usize = 128;
+
+/// Dense points per parallel task of a per-frame product.
+fn frame_chunk(n: usize) -> usize {
+    (n / FRAME_PIECES).clamp(MIN_FRAME_CHUNK, CHUNK)
+}
+
+/// Up to this many dense points a frame runs on the calling thread: waking the thread pool
+/// and waiting for it costs more than the product itself (on the 3203-point sphere, 40 % of
+/// the time went to the wake-up).
+const SEQUENTIAL_POINTS: usize = 16_384;
+
+/// Runs `work(chunk index, positions chunk, normals chunk)` over chunks of `size` points
+/// (the normals chunk is empty when there are no normals), in parallel when there are more
+/// than [`SEQUENTIAL_POINTS`].
+fn for_each_chunk(
+    size: usize,
+    positions: &mut [Vec3],
+    normals: Option<&mut [Vec3]>,
+    work: impl Fn(usize, &mut [Vec3], &mut [Vec3]) + Sync + Send,
+) {
+    let sequential = positions.len() <= SEQUENTIAL_POINTS;
+    match (normals, sequential) {
+        (Some(normals), true) => positions
+            .chunks_mut(size)
+            .zip(normals.chunks_mut(size))
+            .enumerate()
+            .for_each(|(c, (p, n))| work(c, p, n)),
+        (Some(normals), false) => positions
+            .par_chunks_mut(size)
+            .zip(normals.par_chunks_mut(size))
+            .enumerate()
+            .for_each(|(c, (p, n))| work(c, p, n)),
+        (None, true) => positions
+            .chunks_mut(size)
+            .enumerate()
+            .for_each(|(c, p)| work(c, p, &mut [])),
+        (None, false) => positions
+            .par_chunks_mut(size)
+            .enumerate()
+            .for_each(|(c, p)| work(c, p, &mut [])),
+    }
+}
+
+/// Below this length a deformed normal is taken as undefined (a fully crushed neighbourhood)
+/// and the rest normal is kept.
+const MIN_NORMAL_LENGTH: f32 = 1.0e-12;
+
+/// How to build a transfer.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TransferConfig {
+    /// Simulation points each dense point follows.
+    pub k: usize,
+    /// Gaussian bandwidth h as a multiple of the farthest neighbour's distance.
+    pub bandwidth: f32,
+}
+
+impl Default for TransferConfig {
+    fn default() -> Self {
+        Self {
+            k: DEFAULT_TRANSFER_K,
+            bandwidth: DEFAULT_BANDWIDTH,
+        }
+    }
+}
+
+/// Why a transfer could not be built or applied.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum TransferError {
+    /// There are no simulation points to follow.
+    #[error("a transfer needs at least one simulation point")]
+    NoSimulationPoints,
+    /// More than [`MAX_SIMULATION_POINTS`] simulation points.
+    #[error("a transfer follows at most {MAX_SIMULATION_POINTS} simulation points, got {0}")]
+    TooManySimulationPoints(usize),
+    /// k outside 1..=MAX_TRANSFER_K.
+    #[error("the transfer's k must be between 1 and {MAX_TRANSFER_K}, got {0}")]
+    KOutOfRange(usize),
+    /// The bandwidth is not a positive finite number.
+    #[error("the bandwidth must be a positive finite number, got {0}")]
+    InvalidBandwidth(f32),
+    /// Positions and normals differ in length.
+    #[error("{positions} dense positions but {normals} normals")]
+    LengthMismatch {
+        /// Dense positions.
+        positions: usize,
+        /// Dense normals.
+        normals: usize,
+    },
+    /// A position is not finite, or a normal not finite or zero.
+    #[error("{which} point {index} has a non-finite position or a zero or non-finite normal")]
+    InvalidPoint {
+        /// "dense" or "simulation".
+        which: &'static str,
+        /// The point.
+        index: usize,
+    },
+    /// The displacements do not match the simulation points.
+    #[error("expected {expected} simulation displacements, got {found}")]
+    DisplacementCount {
+        /// Simulation points.
+        expected: usize,
+        /// Displacements given.
+        found: usize,
+    },
+    /// An output slice has the wrong length.
+    #[error("the output holds {found} points, the transfer {expected}")]
+    OutputLength {
+        /// Dense points.
+        expected: usize,
+        /// Output length.
+        found: usize,
+    },
+}
+
+/// Which fit each dense point got.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct FitReport {
+    /// Fits with the normal coordinate (exact for affine motion on curved surfaces).
+    pub full: usize,
+    /// The paper's plane fit (coplanar neighbours).
+    pub plane: usize,
+    /// Ridge-damped fits (collinear or too few neighbours).
+    pub regularised: usize,
+}
+
+/// Kinds of fit.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Fit {
+    Full,
+    Plane,
+    Regularised,
+}
+
+/// One neighbour of a dense point: the coefficients of its displacement in the fitted value
+/// and in the two tangent slopes (x, y, z), and its index in the mantissa bits of w (see
+/// [`INDEX_TAG`]). One aligned 16-byte SIMD load: each frame streams the terms of every
+/// dense point, so their size and loads are the per-frame cost.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub(crate) struct Term(Vec4);
+
+impl Term {
+    fn new(c: Vec3A, j: u32) -> Self {
+        debug_assert!((j as usize) < MAX_SIMULATION_POINTS);
+        Self(c.extend(f32::from_bits(INDEX_TAG | j)))
+    }
+
+    /// The coefficients (the w lane, which holds the index, is a number between 2 and 4
+    /// that the arithmetic carries along and nobody reads).
+    #[inline]
+    fn coefficients(self) -> Vec3A {
+        Vec3A::from_vec4(self.0)
+    }
+
+    /// The value coefficient.
+    #[inline]
+    fn value(self) -> f32 {
+        self.0.x
+    }
+
+    /// This term's displacement in `table` (indexed by simulation point).
+    #[inline]
+    fn displacement(self, table: &[Vec3A]) -> Vec3A {
+        table[(self.0.w.to_bits() & INDEX_MASK) as usize]
+    }
+}
+
+/// Precomputed transfer coefficients from simulation points to dense points.
+#[derive(Debug, Clone)]
+pub struct Transfer {
+    pub(crate) config: TransferConfig,
+    /// Neighbours per dense point (k, or all simulation points when there are fewer).
+    pub(crate) k: usize,
+    pub(crate) rest: Vec<Vec3>,
+    /// Unit rest normals; each frame derives the tangent frame from them ([`tangent_frame`]:
+    /// a few multiplications are cheaper than reading 32 more bytes per point).
+    pub(crate) normals: Vec<Vec3>,
+    pub(crate) sim_rest: Vec<Vec3>,
+    /// Row i (k terms): the simulation points dense point i follows, with their coefficients.
+    pub(crate) terms: Vec<Term>,
+    pub(crate) report: FitReport,
+}
+
+/// The tangent frame (t₁, t₂) of a unit normal, with t₁ × t₂ = n (Duff et al.'s branchless
+/// basis: one division, no cross product; it runs for every dense point every frame).
+#[inline]
+pub fn tangent_frame(n: Vec3) -> (Vec3, Vec3) {
+    n.any_orthonormal_pair()
+}
+
+impl Transfer {
+    /// Precomputes the transfer from simulation points at `sim_rest` to dense points at
+    /// `rest` with unit `normals` (all in the rest state).
+    pub fn new(
+        rest: &[Vec3],
+        normals: &[Vec3],
+        sim_rest: &[Vec3],
+        config: TransferConfig,
+    ) -> Result<Self, TransferError> {
+        if !(1..=MAX_TRANSFER_K).contains(&config.k) {
+            return Err(TransferError::KOutOfRange(config.k));
+        }
+        if !(config.bandwidth > 0.0 && config.bandwidth.is_finite()) {
+            return Err(TransferError::InvalidBandwidth(config.bandwidth));
+        }
+        if sim_rest.is_empty() {
+            return Err(TransferError::NoSimulationPoints);
+        }
+        if sim_rest.len() > MAX_SIMULATION_POINTS {
+            return Err(TransferError::TooManySimulationPoints(sim_rest.len()));
+        }
+        if rest.len() != normals.len() {
+            return Err(TransferError::LengthMismatch {
+                positions: rest.len(),
+                normals: normals.len(),
+            });
+        }
+        if let Some(index) = sim_rest.iter().position(|p| !p.is_finite()) {
+            return Err(TransferError::InvalidPoint {
+                which: "simulation",
+                index,
+            });
+        }
+        if let Some(index) = rest
+            .iter()
+            .zip(normals)
+            .position(|(p, n)| !p.is_finite() || !n.is_finite() || n.length_squared() == 0.0)
+        {
+            return Err(TransferError::InvalidPoint {
+                which: "dense",
+                index,
+            });
+        }
+        let mut transfer = Self {
+            config,
+            k: config.k.min(sim_rest.len()),
+            rest: Vec::new(),
+            normals: Vec::new(),
+            sim_rest: sim_rest.to_vec(),
+            terms: Vec::new(),
+            report: FitReport::default(),
+        };
+        let normals: Vec<Vec3> = normals.iter().map(|n| n.normalize()).collect();
+        transfer.extend(rest, &normals, &KnnIndex::build(sim_rest));
+        Ok(transfer)
+    }
+
+    /// Adds dense points (validated, unit normals) with their own coefficients.
+    pub(crate) fn extend(&mut self, rest: &[Vec3], normals: &[Vec3], index: &KnnIndex) {
+        let k = self.k;
+        let start = self.rest.len();
+        self.rest.extend_from_slice(rest);
+        self.normals.extend_from_slice(normals);
+        self.terms.resize((start + rest.len()) * k, Term::default());
+        let (sim, bandwidth) = (&self.sim_rest, self.config.bandwidth);
+        let fits: Vec<Fit> = self.terms[start * k..]
+            .par_chunks_mut(CHUNK * k)
+            .enumerate()
+            .flat_map_iter(|(chunk, terms)| {
+                let mut fits = Vec::with_capacity(terms.len() / k);
+                let mut nbr = Vec::with_capacity(k);
+                let mut coef = vec![Vec3A::ZERO; k];
+                for (row, terms) in terms.chunks_exact_mut(k).enumerate() {
+                    let i = chunk * CHUNK + row;
+                    let (p, n) = (rest[i], normals[i]);
+                    nbr.clear();
+                    nbr.extend(index.nearest(p, k).iter().map(|nb| nb.index));
+                    fits.push(fit_point(p, n, sim, &nbr, bandwidth, &mut coef));
+                    for ((term, &j), c) in terms.iter_mut().zip(&nbr).zip(&coef) {
+                        *term = Term::new(*c, j);
+                    }
+                }
+                fits
+            })
+            .collect();
+        for fit in fits {
+            match fit {
+                Fit::Full => self.report.full += 1,
+                Fit::Plane => self.report.plane += 1,
+                Fit::Regularised => self.report.regularised += 1,
+            }
+        }
+    }
+
+    /// Number of dense points.
+    pub fn len(&self) -> usize {
+        self.rest.len()
+    }
+
+    /// Whether there are no dense points.
+    pub fn is_empty(&self) -> bool {
+        self.rest.is_empty()
+    }
+
+    /// Number of simulation points followed.
+    pub fn simulation_points(&self) -> usize {
+        self.sim_rest.len()
+    }
+
+    /// Rest positions of the dense points.
+    pub fn rest_positions(&self) -> &[Vec3] {
+        &self.rest
+    }
+
+    /// Rest normals of the dense points.
+    pub fn rest_normals(&self) -> &[Vec3] {
+        &self.normals
+    }
+
+    /// Which fit the dense points got.
+    pub fn report(&self) -> FitReport {
+        self.report
+    }
+
+    /// The settings.
+    pub fn config(&self) -> TransferConfig {
+        self.config
+    }
+
+    /// Bytes of precomputed data (neighbour indices and coefficients).
+    pub fn coefficient_bytes(&self) -> usize {
+        self.terms.len() * std::mem::size_of::<Term>()
+    }
+
+    fn check(&self, displacements: &[Vec3], outputs: &[usize]) -> Result<(), TransferError> {
+        if displacements.len() != self.sim_rest.len() {
+            return Err(TransferError::DisplacementCount {
+                expected: self.sim_rest.len(),
+                found: displacements.len(),
+            });
+        }
+        if let Some(&found) = outputs.iter().find(|&&l| l != self.len()) {
+            return Err(TransferError::OutputLength {
+                expected: self.len(),
+                found,
+            });
+        }
+        Ok(())
+    }
+
+    /// Deformed dense positions and normals for the simulation points' `displacements`
+    /// (current minus rest position), written into `positions` and `normals`.
+    pub fn apply(
+        &self,
+        displacements: &[Vec3],
+        positions: &mut [Vec3],
+        normals: &mut [Vec3],
+    ) -> Result<(), TransferError> {
+        self.check(displacements, &[positions.len(), normals.len()])?;
+        let k = self.k;
+        let disp = simd_displacements(displacements);
+        let size = frame_chunk(self.len());
+        for_each_chunk(size, positions, Some(normals), |chunk, pos, nrm| {
+            let first = chunk * size;
+            for (row, (p, n)) in pos.iter_mut().zip(nrm.iter_mut()).enumerate() {
+                let i = first + row;
+                let (u, g1, g2) = self.fitted(i, k, &disp);
+                *p = self.rest[i] + Vec3::from(u);
+                let (t1, t2) = tangent_frame(self.normals[i]);
+                *n = Vec3::from((Vec3A::from(t1) + g1).cross(Vec3A::from(t2) + g2));
+            }
+            // Normalised in a second, short loop: the square roots and divisions of many
+            // points then overlap instead of each waiting for its own.
+            for (n, rest) in nrm.iter_mut().zip(&self.normals[first..]) {
+                *n = unit_or(*n, *rest);
+            }
+        });
+        Ok(())
+    }
+
+    /// Deformed dense positions only (no normals: cheaper when a scene does not need them).
+    pub fn apply_positions(
+        &self,
+        displacements: &[Vec3],
+        positions: &mut [Vec3],
+    ) -> Result<(), TransferError> {
+        self.check(displacements, &[positions.len()])?;
+        let k = self.k;
+        let disp = simd_displacements(displacements);
+        let size = frame_chunk(self.len());
+        for_each_chunk(size, positions, None, |chunk, pos, _| {
+            for (row, p) in pos.iter_mut().enumerate() {
+                let i = chunk * size + row;
+                let u = self
+                    .row(i, k)
+                    .iter()
+                    .fold(Vec3A::ZERO, |u, t| u + t.value() * t.displacement(&disp));
+                *p = self.rest[i] + Vec3::from(u);
+            }
+        });
+        Ok(())
+    }
+
+    /// Convenience: [`Self::apply`] into new vectors.
+    pub fn deform(&self, displacements: &[Vec3]) -> Result<(Vec<Vec3>, Vec<Vec3>), TransferError> {
+        let mut positions = vec![Vec3::ZERO; self.len()];
+        let mut normals = vec![Vec3::ZERO; self.len()];
+        self.apply(displacements, &mut positions, &mut normals)?;
+        Ok((positions, normals))
+    }
+
+    #[inline]
+    fn row(&self, i: usize, k: usize) -> &[Term] {
+        &self.terms[i * k..(i + 1) * k]
+    }
+
+    /// The fitted displacement at dense point `i` and its derivatives along t₁ and t₂.
+    #[inline]
+    pub(crate) fn fitted(
+        &self,
+        i: usize,
+        k: usize,
+        displacements: &[Vec3A],
+    ) -> (Vec3A, Vec3A, Vec3A) {
+        // u, ∂u/∂x̄ and ∂u/∂ȳ: each neighbour adds its displacement times each of its three
+        // coefficients (broadcast from the term by a shuffle). Two sets of sums, over even
+        // and odd neighbours: two short dependency chains instead of one long one.
+        let mut m = [[Vec3A::ZERO; 3]; 2];
+        let add = |m: &mut [Vec3A; 3], term: &Term| {
+            let c = term.coefficients();
+            let d = term.displacement(displacements);
+            m[0] += d * c.xxx();
+            m[1] += d * c.yyy();
+            m[2] += d * c.zzz();
+        };
+        let row = self.row(i, k);
+        let mut pairs = row.chunks_exact(2);
+        for pair in &mut pairs {
+            let [even, odd] = &mut m;
+            add(even, &pair[0]);
+            add(odd, &pair[1]);
+        }
+        if let [last] = pairs.remainder() {
+            add(&mut m[0], last);
+        }
+        (m[0][0] + m[1][0], m[0][1] + m[1][1], m[0][2] + m[1][2])
+    }
+}
+
+/// `n` normalised, or `fallback` where `n` is (nearly) zero or not finite.
+#[inline]
+fn unit_or(n: Vec3, fallback: Vec3) -> Vec3 {
+    let len = n.length();
+    if len > MIN_NORMAL_LENGTH && len.is_finite() {
+        n * len.recip()
+    } else {
+        fallback
+    }
+}
+
+/// Displacements as 16-byte SIMD vectors (the per-frame loops gather them).
+pub(crate) fn simd_displacements(displacements: &[Vec3]) -> Vec<Vec3A> {
+    displacements.iter().map(|&d| Vec3A::from(d)).collect()
+}
+
+/// A symmetric positive semi-definite matrix of at most 4 × 4, and its Cholesky factor.
+struct Normal4 {
+    m: [[f64; 4]; 4],
+    size: usize,
+}
+
+impl Normal4 {
+    /// Cholesky factor L (lower) of the leading `size` block; `None` when a pivot falls below
+    /// `rel` times the largest diagonal entry.
+    fn cholesky(&self, rel: f64) -> Option<[[f64; 4]; 4]> {
+        let n = self.size;
+        let scale = (0..n).map(|i| self.m[i][i]).fold(0.0, f64::max);
+        if scale <= 0.0 || !scale.is_finite() {
+            return None;
+        }
+        let mut l = [[0.0; 4]; 4];
+        for i in 0..n {
+            for j in 0..=i {
+                let mut s = self.m[i][j];
+                for (a, b) in l[i][..j].iter().zip(&l[j][..j]) {
+                    s -= a * b;
+                }
+                if i == j {
+                    if s <= rel * scale {
+                        return None;
+                    }
+                    l[i][i] = s.sqrt();
+                } else {
+                    l[i][j] = s / l[j][j];
+                }
+            }
+        }
+        Some(l)
+    }
+}
+
+/// Solves L Lᵀ x = e_r for the leading `n` block.
+fn solve_unit(l: &[[f64; 4]; 4], n: usize, r: usize) -> [f64; 4] {
+    let mut y = [0.0; 4];
+    for i in 0..n {
+        let mut s = if i == r { 1.0 } else { 0.0 };
+        for j in 0..i {
+            s -= l[i][j] * y[j];
+        }
+        y[i] = s / l[i][i];
+    }
+    let mut x = [0.0; 4];
+    for i in (0..n).rev() {
+        let mut s = y[i];
+        for j in i + 1..n {
+            s -= l[j][i] * x[j];
+        }
+        x[i] = s / l[i][i];
+    }
+    x
+}
+
+/// Fits dense point `p` (unit normal `n`) to its neighbours `nbr` among `sim`: writes, per
+/// neighbour, the coefficients of the value and the two tangent derivatives.
+fn fit_point(
+    p: Vec3,
+    n: Vec3,
+    sim: &[Vec3],
+    nbr: &[u32],
+    bandwidth: f32,
+    coef: &mut [Vec3A],
+) -> Fit {
+    let (t1, t2) = tangent_frame(n);
+    let (t1, t2, n) = (t1.as_dvec3(), t2.as_dvec3(), n.as_dvec3());
+    let local: Vec<DVec3> = nbr
+        .iter()
+        .map(|&j| {
+            let d = (sim[j as usize] - p).as_dvec3();
+            DVec3::new(d.dot(t1), d.dot(t2), d.dot(n))
+        })
+        .collect();
+    // h: the bandwidth times the farthest neighbour's distance (1 when all coincide with p).
+    // The distance in space, not in the plane: neighbours that all project close to p (far
+    // along the normal) must not make h, and with it the slopes' scale, tiny.
+    let reach = local.iter().map(|q| q.length()).fold(0.0, f64::max);
+    let h = if reach > 0.0 {
+        f64::from(bandwidth) * reach
+    } else {
+        1.0
+    };
+    let basis = |q: &DVec3| [1.0, q.x / h, q.y / h, q.z / h];
+    let weights: Vec<f64> = local
+        .iter()
+        .map(|q| (-(q.x * q.x + q.y * q.y) / (h * h)).exp())
+        .collect();
+    let mut normal = Normal4 {
+        m: [[0.0; 4]; 4],
+        size: 4,
+    };
+    for (q, &w) in local.iter().zip(&weights) {
+        let phi = basis(q);
+        for r in 0..4 {
+            for s in 0..4 {
+                normal.m[r][s] += w * phi[r] * phi[s];
+            }
+        }
+    }
+    // Coefficients of the value and the two slopes (unscaled by h) for a factored fit:
+    // rows 0..3 of A⁻¹ (A symmetric), then c_r[j] = w_j φ(j)·row_r.
+    let coefficients = |l: &[[f64; 4]; 4], size: usize, coef: &mut [Vec3A]| {
+        let rows = [
+            solve_unit(l, size, 0),
+            solve_unit(l, size, 1),
+            solve_unit(l, size, 2),
+        ];
+        let mut amplification = 0.0f64;
+        for ((c, q), &w) in coef.iter_mut().zip(&local).zip(&weights) {
+            let phi = basis(q);
+            let dot = |row: &[f64; 4]| (0..size).map(|s| row[s] * phi[s]).sum::<f64>() * w;
+            let value = dot(&rows[0]);
+            amplification += value.abs();
+            *c = Vec3A::new(
+                value as f32,
+                (dot(&rows[1]) / h) as f32,
+                (dot(&rows[2]) / h) as f32,
+            );
+        }
+        amplification
+    };
+    if let Some(l) = normal.cholesky(FULL_FIT_PIVOT)
+        && coefficients(&l, 4, coef) <= MAX_AMPLIFICATION
+    {
+        return Fit::Full;
+    }
+    normal.size = 3;
+    if let Some(l) = normal.cholesky(PLANE_FIT_PIVOT) {
+        coefficients(&l, 3, coef);
+        return Fit::Plane;
+    }
+    let ridge = RIDGE * weights.iter().sum::<f64>();
+    normal.m[1][1] += ridge;
+    normal.m[2][2] += ridge;
+    match normal.cholesky(0.0) {
+        Some(l) => {
+            coefficients(&l, 3, coef);
+        }
+        None => {
+            // No weight at all (cannot happen with finite input): follow the nearest.
+            coef.iter_mut().for_each(|c| *c = Vec3A::ZERO);
+            coef[0] = Vec3A::X;
+        }
+    }
+    Fit::Regularised
+}
+
+/// Normals of `positions` by PCA over their `k` nearest neighbours, each turned to agree
+/// with the matching `reference` normal (the paper's way of updating normals).
+pub fn pca_normals_of(positions: &[Vec3], reference: &[Vec3], k: usize) -> Vec<Vec3> {
+    let index = KnnIndex::build(positions);
+    let graph = index.knn_graph(positions, k);
+    let (mut normals, _) = pca_normals(positions, &graph);
+    normals.par_iter_mut().zip(reference).for_each(|(n, r)| {
+        if n.dot(*r) < 0.0 {
+            *n = -*n;
+        }
+    });
+    normals
+}
+
+/// The paper's per-frame method, literally: for every dense point a k-NN search among the
+/// simulation points, the 3 × 3 plane fit of eq 7–12 solved for the displacement, then
+/// normals by PCA over the deformed dense cloud (`normal_k` neighbours), oriented like the
+/// rest normals. Parallel, like [`Transfer::apply`], so the two compare fairly.
+pub fn literal_transfer(
+    rest: &[Vec3],
+    normals: &[Vec3],
+    sim_rest: &[Vec3],
+    displacements: &[Vec3],
+    config: TransferConfig,
+    normal_k: usize,
+) -> (Vec<Vec3>, Vec<Vec3>) {
+    let index = KnnIndex::build(sim_rest);
+    let k = config.k.min(sim_rest.len());
+    let h_scale = f64::from(config.bandwidth);
+    let positions: Vec<Vec3> = rest
+        .par_iter()
+        .zip(normals)
+        .map(|(&p, &n)| {
+            let (t1, t2) = tangent_frame(n.normalize_or_zero());
+            let found = index.nearest(p, k);
+            let local: Vec<(f64, f64)> = found
+                .iter()
+                .map(|nb| {
+                    let d = sim_rest[nb.index as usize] - p;
+                    (f64::from(d.dot(t1)), f64::from(d.dot(t2)))
+                })
+                .collect();
+            let reach = found
+                .iter()
+                .map(|nb| f64::from(nb.dist2).sqrt())
+                .fold(0.0, f64::max);
+            let h = if reach > 0.0 { h_scale * reach } else { 1.0 };
+            // A = PᵀWP, B u = PᵀW u for the three components at once.
+            let mut a = [[0.0f64; 3]; 3];
+            let mut b = [DVec3::ZERO; 3];
+            for (nb, &(x, y)) in found.iter().zip(&local) {
+                let w = (-(x * x + y * y) / (h * h)).exp();
+                let phi = [1.0, x, y];
+                let u = displacements[nb.index as usize].as_dvec3();
+                for r in 0..3 {
+                    for s in 0..3 {
+                        a[r][s] += w * phi[r] * phi[s];
+                    }
+                    b[r] += w * phi[r] * u;
+                }
+            }
+            let m = glam::DMat3::from_cols_array_2d(&a);
+            let u = if m.determinant().abs() > f64::EPSILON * a[0][0].powi(3) {
+                // a₀ = e₀ᵀA⁻¹B u (A is symmetric: row 0 of A⁻¹ is its column 0).
+                let inv = m.inverse();
+                inv.x_axis.x * b[0] + inv.y_axis.x * b[1] + inv.z_axis.x * b[2]
+            } else {
+                b[0] / a[0][0].max(f64::MIN_POSITIVE)
+            };
+            p + u.as_vec3()
+        })
+        .collect();
+    let normals = pca_normals_of(&positions, normals, normal_k);
+    (positions, normals)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn cholesky_solves_a_small_system() {
+        let m = Normal4 {
+            m: [
+                [4.0, 1.0, 0.5, 0.0],
+                [1.0, 3.0, 0.2, 0.1],
+                [0.5, 0.2, 2.0, 0.3],
+                [0.0, 0.1, 0.3, 1.0],
+            ],
+            size: 4,
+        };
+        let l = m.cholesky(1e-12).unwrap();
+        for r in 0..4 {
+            let x = solve_unit(&l, 4, r);
+            for i in 0..4 {
+                let row: f64 = (0..4).map(|j| m.m[i][j] * x[j]).sum();
+                assert!((row - f64::from(u8::from(i == r))).abs() < 1e-12);
+            }
+        }
+        let singular = Normal4 {
+            m: [[1.0; 4]; 4],
+            size: 2,
+        };
+        assert!(singular.cholesky(1e-8).is_none());
+    }
+
+    #[test]
+    fn frame_is_right_handed() {
+        for n in [
+            Vec3::X,
+            Vec3::Y,
+            -Vec3::Z,
+            Vec3::new(0.3, -0.4, 0.866).normalize(),
+        ] {
+            let (t1, t2) = tangent_frame(n);
+            assert!((t1.cross(t2) - n).length() < 1e-6);
+            assert!(t1.dot(n).abs() < 1e-6 && t2.dot(n).abs() < 1e-6);
+        }
+    }
+}
