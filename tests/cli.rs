@@ -238,3 +238,163 @@ fn bench_cloth_grid_reports_speed_and_sag() {
         assert!(!out.stderr.is_empty());
     }
 }
+
+#[test]
+fn run_writes_the_deformed_surface_and_reports_it() {
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenes/sphere_poke.ron");
+    let out_ply = scratch("poked.ply");
+    let out_png = scratch("poked.png");
+    let out = run(&[
+        "run",
+        scene.to_str().unwrap(),
+        "-o",
+        out_ply.to_str().unwrap(),
+        "--png",
+        out_png.to_str().unwrap(),
+        "--json",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    for key in [
+        "dense_points",
+        "sim_points",
+        "springs",
+        "steps",
+        "integrator",
+        "ms_per_step",
+        "ms_transfer",
+        "max_displacement",
+        "energy_final",
+        "finite",
+        "resampled_points",
+    ] {
+        assert!(!v[key].is_null(), "missing {key}: {v}");
+    }
+    assert_eq!(v["dense_points"], 3203);
+    assert_eq!(v["sim_points"], 338);
+    assert_eq!(v["steps"], 240);
+    assert_eq!(v["integrator"], "implicit-euler");
+    assert_eq!(v["finite"], true);
+    let moved = v["max_displacement"].as_f64().unwrap();
+    assert!(moved > 0.3 && moved < 0.5, "{moved}");
+    // The PLY holds the deformed surface with unit normals; the picture was drawn.
+    let cloud = read_cloud(&out_ply, None).unwrap();
+    assert_eq!(cloud.len(), 3203);
+    let normals = cloud.normals().unwrap();
+    assert!(normals.iter().all(|n| (n.length() - 1.0).abs() < 1e-4));
+    let png = std::fs::read(&out_png).unwrap();
+    assert!(png.starts_with(b"\x89PNG") && png.len() > 10_000);
+}
+
+#[test]
+fn run_rejects_bad_scenes_with_exit_2() {
+    let broken = scratch("broken.ron");
+    std::fs::write(&broken, "(cloud: \"x.ply\", steps: many)").unwrap();
+    let missing_cloud = scratch("missing_cloud.ron");
+    std::fs::write(
+        &missing_cloud,
+        r#"(cloud: "no-such-cloud.ply", simplify: (target: Some(40)), dt: 0.01, steps: 5)"#,
+    )
+    .unwrap();
+    for (scene, needle) in [
+        (broken.to_str().unwrap(), "broken.ron"),
+        (missing_cloud.to_str().unwrap(), "no-such-cloud.ply"),
+        ("no-such-scene.ron", "no-such-scene.ron"),
+    ] {
+        let out = run(&["run", scene]);
+        assert_eq!(out.status.code(), Some(2), "{scene}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains(needle), "{err}");
+    }
+}
+
+#[test]
+fn generate_and_render() {
+    let sphere = scratch("generated_sphere.ply");
+    let out = run(&[
+        "generate",
+        "sphere",
+        "--points",
+        "500",
+        "-o",
+        sphere.to_str().unwrap(),
+    ]);
+    assert!(out.status.success());
+    let cloud = read_cloud(&sphere, None).unwrap();
+    assert_eq!(cloud.len(), 500);
+    assert!(cloud.has_usable_normals());
+    let letter = scratch("generated_b.ply");
+    let out = run(&[
+        "generate",
+        "letter-b",
+        "--spacing",
+        "0.05",
+        "-o",
+        letter.to_str().unwrap(),
+    ]);
+    assert!(out.status.success());
+    assert!(read_cloud(&letter, None).unwrap().len() > 300);
+
+    let picture = scratch("two.png");
+    let out = run(&[
+        "render",
+        sphere.to_str().unwrap(),
+        letter.to_str().unwrap(),
+        "-o",
+        picture.to_str().unwrap(),
+        "--width",
+        "400",
+        "--height",
+        "200",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(std::fs::read(&picture).unwrap().starts_with(b"\x89PNG"));
+
+    for args in [
+        &["generate", "sphere", "--radius", "-1", "-o", "x.ply"][..],
+        &["generate", "sheet", "--spacing", "0.00001", "-o", "x.ply"],
+        &["render", "no-such.ply", "-o", "x.png"],
+        &[
+            "render",
+            sphere.to_str().unwrap(),
+            "-o",
+            "x.png",
+            "--view",
+            "0,1,0",
+        ],
+    ] {
+        let out = run(args);
+        assert_eq!(out.status.code(), Some(2), "{args:?}");
+    }
+}
+
+#[test]
+fn bench_transfer_reports_speed_and_error() {
+    let out = run(&[
+        "bench", "transfer", "--points", "3000", "--sim", "300", "--repeat", "2", "--json",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["dense_points"], 3000);
+    assert_eq!(v["sim_points"], 300);
+    assert!(v["apply_ms"].as_f64().unwrap() > 0.0);
+    assert!(v["speedup"].as_f64().unwrap() > 0.0);
+    // Both methods follow the bulge; the precomputed fit is the closer one.
+    let ours = v["errors"]["position_mean"].as_f64().unwrap();
+    let literal = v["literal_errors"]["position_mean"].as_f64().unwrap();
+    assert!(ours < 0.01 && ours < literal, "{ours} vs {literal}");
+    let out = run(&["bench", "transfer", "--points", "100", "--sim", "200"]);
+    assert_eq!(out.status.code(), Some(2));
+}

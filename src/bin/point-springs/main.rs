@@ -7,12 +7,21 @@
 //!                        [-o OUT.ply] [--format F] [--ascii] [--json]
 //! point-springs bench cloth-grid [--size N] [--steps S] [--integrator I] [--repeat R]
 //!                        [--no-reference] [--json]
+//! point-springs bench transfer [--points N] [--sim M] [--sim-source sphere|simplify] [-k K]
+//!                        [--bandwidth H] [--repeat R] [--no-literal] [--json]
+//! point-springs run SCENE.ron [-o DEFORMED.ply] [--png PICTURE.png] [--view X,Y,Z] [--json]
+//! point-springs render FILE -o PICTURE.png [--view X,Y,Z] [--up X,Y,Z] [--width W] [--height H]
+//! point-springs generate (sphere|hat|sheet|letter-b) -o OUT.ply [--points N] [--radius R]
+//!                        [--rim Y] [--size S] [--spacing H] [--ascii]
 //! ```
 //!
 //! Exit codes: 0 success, 2 bad input (unreadable or malformed file, bad arguments),
 //! 1 any other failure (e.g. the output cannot be written).
 
-use std::path::PathBuf;
+mod bench;
+mod render;
+
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
 
@@ -21,14 +30,13 @@ use bevy_point_springs::core::io::{CloudFormat, PlyEncoding, read_cloud, write_p
 use bevy_point_springs::core::knn::KnnIndex;
 use bevy_point_springs::core::network::{DEFAULT_DENSITY, NetworkConfig, build_network};
 use bevy_point_springs::core::normals::{DEFAULT_NORMAL_K, NormalSource, ensure_normals};
+use bevy_point_springs::core::scene::Scene;
+use bevy_point_springs::core::shapes::{self, HAT_DEFAULT_RIM, PAPER_SPHERE_POINTS};
 use bevy_point_springs::core::simplify::{
     DEFAULT_SIMPLIFY_K, SimplifyConfig, SimplifyProgress, StopReason, simplify_with_progress,
 };
-use bevy_point_springs::core::solver::cloth::{
-    CLOTH_DT, CLOTH_SIZE, CLOTH_STEPS, ReferenceCloth, cloth_grid, max_sag,
-};
-use bevy_point_springs::core::solver::{Integrator, SubstepPolicy};
-use clap::{Parser, Subcommand};
+use clap::{Parser, Subcommand, ValueEnum};
+use glam::Vec3;
 use serde::Serialize;
 
 /// Exit code for bad input.
@@ -114,59 +122,144 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
-    /// Time the solver on standard networks.
+    /// Time core stages against straightforward or literal implementations.
     Bench {
         #[command(subcommand)]
-        case: BenchCase,
+        case: bench::BenchCase,
     },
-}
-
-#[derive(Subcommand)]
-enum BenchCase {
-    /// The standard CPU cloth benchmark: a 32×32 grid with 5826 springs hanging from two
-    /// corners, symplectic Euler at dt = 1/960 for 1000 steps, timed against the
-    /// straightforward loop over the springs in the same run (one thread).
-    ClothGrid {
-        /// Particles per side.
-        #[arg(long, default_value_t = CLOTH_SIZE)]
-        size: usize,
-        /// Steps per run.
-        #[arg(long, default_value_t = CLOTH_STEPS)]
-        steps: usize,
-        /// Integrator (the benchmark's is symplectic-euler; others take the same dt as
-        /// given).
-        #[arg(long, default_value_t = Integrator::SymplecticEuler)]
-        integrator: Integrator,
-        /// Timed runs of each; the fastest counts.
-        #[arg(long, default_value_t = 3)]
-        repeat: usize,
-        /// Skip the straightforward reference loop.
+    /// Run a scene file headless: load, simplify, simulate, transfer the motion back to
+    /// every dense point; write the deformed surface (positions and normals).
+    Run {
+        /// The scene (.ron); its cloud path is relative to it.
+        scene: PathBuf,
+        /// Write the deformed dense surface to this PLY file.
+        #[arg(short, long)]
+        output: Option<PathBuf>,
+        /// Draw the surface at rest and deformed, side by side, to this PNG file.
         #[arg(long)]
-        no_reference: bool,
+        png: Option<PathBuf>,
+        /// Direction from the surface towards the eye for --png.
+        #[arg(long, value_parser = parse_vec3, default_value = "1,0.8,1.6")]
+        view: Vec3,
+        /// Up on the picture for --png.
+        #[arg(long, value_parser = parse_vec3, default_value = "0,1,0")]
+        up: Vec3,
+        /// Write ASCII PLY instead of binary little-endian.
+        #[arg(long)]
+        ascii: bool,
         /// Print JSON instead of text.
         #[arg(long)]
         json: bool,
     },
+    /// Draw clouds as lit discs to a PNG (orthographic, no GPU needed); several clouds are
+    /// drawn side by side at one scale.
+    Render {
+        /// The clouds (.ply .xyz .pwn .off .obj); normals are estimated where missing.
+        #[arg(required = true)]
+        files: Vec<PathBuf>,
+        /// The PNG to write.
+        #[arg(short, long)]
+        output: PathBuf,
+        /// Direction from the cloud towards the eye.
+        #[arg(long, value_parser = parse_vec3, default_value = "1,0.8,1.6")]
+        view: Vec3,
+        /// Up on the picture.
+        #[arg(long, value_parser = parse_vec3, default_value = "0,1,0")]
+        up: Vec3,
+        /// Picture width, pixels.
+        #[arg(long, default_value_t = 900)]
+        width: u32,
+        /// Picture height, pixels.
+        #[arg(long, default_value_t = 700)]
+        height: u32,
+        /// Read as this format instead of the one the extension names.
+        #[arg(long)]
+        format: Option<CloudFormat>,
+    },
+    /// Write a procedural surface with exact normals as PLY.
+    Generate {
+        /// Which surface.
+        shape: ShapeKind,
+        /// The PLY file to write.
+        #[arg(short, long)]
+        output: PathBuf,
+        /// Points (sphere and hat).
+        #[arg(long, default_value_t = PAPER_SPHERE_POINTS)]
+        points: usize,
+        /// Radius (sphere and hat).
+        #[arg(long, default_value_t = 1.0)]
+        radius: f32,
+        /// Height of the hat's rim as a fraction of the radius.
+        #[arg(long, default_value_t = HAT_DEFAULT_RIM)]
+        rim: f32,
+        /// Side of the sheet, height of the letter.
+        #[arg(long, default_value_t = 2.0)]
+        size: f32,
+        /// Point spacing (sheet and letter).
+        #[arg(long, default_value_t = 0.04)]
+        spacing: f32,
+        /// Write ASCII PLY instead of binary little-endian.
+        #[arg(long)]
+        ascii: bool,
+    },
+}
+
+/// Procedural surfaces `generate` writes.
+#[derive(Debug, Clone, Copy, ValueEnum)]
+enum ShapeKind {
+    /// A Fibonacci sphere.
+    Sphere,
+    /// The lower part of a sphere (open).
+    Hat,
+    /// A flat square sheet.
+    Sheet,
+    /// A flat sheet shaped like the letter B.
+    LetterB,
+}
+
+/// Most points `generate` writes.
+const MAX_GENERATED_POINTS: usize = 50_000_000;
+
+/// Parses "x,y,z".
+fn parse_vec3(s: &str) -> Result<Vec3, String> {
+    let parts: Vec<f32> = s
+        .split(',')
+        .map(|p| p.trim().parse::<f32>().map_err(|e| format!("{p:?}: {e}")))
+        .collect::<Result<_, _>>()?;
+    match parts[..] {
+        [x, y, z] if x.is_finite() && y.is_finite() && z.is_finite() => Ok(Vec3::new(x, y, z)),
+        _ => Err(format!("expected three finite numbers x,y,z, got {s:?}")),
+    }
 }
 
 #[derive(Serialize)]
-struct ClothBenchReport {
-    benchmark: &'static str,
-    particles: usize,
+struct RunReport {
+    scene: String,
+    output: Option<String>,
+    png: Option<String>,
+    dense_points: usize,
+    dense_points_at_rest: usize,
+    sim_points: usize,
     springs: usize,
-    springs_in_runs: usize,
+    stretch_springs: usize,
+    bend_springs: usize,
+    pinned_points: usize,
+    pulled_points: Vec<usize>,
     steps: usize,
     dt: f32,
     integrator: String,
-    us_per_step: f64,
-    max_sag: f32,
-    finite: bool,
+    substeps: u64,
     cg_iterations: u64,
-    reference_us_per_step: Option<f64>,
-    reference_max_sag: Option<f32>,
-    sag_difference: Option<f32>,
-    max_position_difference: Option<f32>,
-    speedup: Option<f64>,
+    guard_trips: u64,
+    limited_steps: u64,
+    ms_prepare: f64,
+    ms_per_step: f64,
+    ms_transfer: f64,
+    ms_resample: f64,
+    max_displacement: f32,
+    energy_final: f64,
+    finite: bool,
+    resampled_points: usize,
 }
 
 #[derive(Serialize)]
@@ -267,7 +360,58 @@ fn load(file: &std::path::Path, format: Option<CloudFormat>) -> Result<PointClou
 
 fn run(command: Command) -> Result<(), Failure> {
     match command {
-        Command::Bench { case } => bench(case),
+        Command::Bench { case } => bench::bench(case),
+        Command::Run {
+            scene,
+            output,
+            png,
+            view,
+            up,
+            ascii,
+            json,
+        } => run_scene(&scene, output, png, view, up, ascii, json),
+        Command::Render {
+            files,
+            output,
+            view,
+            up,
+            width,
+            height,
+            format,
+        } => {
+            let view = check_view(view, up, (width, height))?;
+            let mut clouds = Vec::with_capacity(files.len());
+            for file in &files {
+                let mut cloud = load(file, format)?;
+                ensure_normals(&mut cloud, DEFAULT_NORMAL_K).map_err(Failure::bad_input)?;
+                clouds.push(cloud);
+            }
+            let refs: Vec<&PointCloud> = clouds.iter().collect();
+            let drawn = render::render(&refs, &view, &output).map_err(Failure::other)?;
+            println!(
+                "{} points in {} panel(s), discs of {:.1} px or more → {}",
+                drawn.points,
+                refs.len(),
+                drawn.disc_px,
+                output.display()
+            );
+            Ok(())
+        }
+        Command::Generate {
+            shape,
+            output,
+            points,
+            radius,
+            rim,
+            size,
+            spacing,
+            ascii,
+        } => {
+            let cloud = generate(shape, points, radius, rim, size, spacing)?;
+            write_ply(&output, &cloud, encoding(ascii)).map_err(Failure::other)?;
+            println!("{} points → {}", cloud.len(), output.display());
+            Ok(())
+        }
         Command::Info { file, format, json } => {
             let cloud = load(&file, format)?;
             let bounds = cloud
@@ -493,112 +637,178 @@ fn run(command: Command) -> Result<(), Failure> {
     }
 }
 
-/// Times `steps` steps of `step`, `repeat` times from a fresh state; the fastest run's
-/// microseconds per step.
-fn time_steps<S>(
-    repeat: usize,
-    steps: usize,
-    mut fresh: impl FnMut() -> S,
-    mut step: impl FnMut(&mut S),
-) -> (f64, S) {
-    let mut best = f64::INFINITY;
-    let mut last = fresh();
-    for _ in 0..repeat.max(1) {
-        let mut state = fresh();
-        let start = Instant::now();
-        for _ in 0..steps {
-            step(&mut state);
-        }
-        best = best.min(start.elapsed().as_secs_f64() * 1e6 / steps.max(1) as f64);
-        last = state;
+fn encoding(ascii: bool) -> PlyEncoding {
+    if ascii {
+        PlyEncoding::Ascii
+    } else {
+        PlyEncoding::BinaryLittleEndian
     }
-    (best, last)
 }
 
-fn bench(case: BenchCase) -> Result<(), Failure> {
-    let BenchCase::ClothGrid {
-        size,
-        steps,
-        integrator,
-        repeat,
-        no_reference,
-        json,
-    } = case;
-    let grid = cloth_grid(size).map_err(Failure::bad_input)?;
-    let solver = grid
-        .solver_with(integrator, SubstepPolicy::Unchecked)
-        .map_err(Failure::bad_input)?;
-    let (us_per_step, solver) = time_steps(
-        repeat,
-        steps,
-        || solver.clone(),
-        |s| {
-            // The step is valid by construction; a guard trip shows in `finite` and the
-            // diagnostics.
-            let _ = s.step(CLOTH_DT);
-        },
-    );
-    let positions = solver.positions();
-    let sag = max_sag(&grid.positions, &positions);
-    let diagnostics = solver.diagnostics();
-    let reference = (!no_reference).then(|| {
-        time_steps(
-            repeat,
-            steps,
-            || ReferenceCloth::new(&grid),
-            |r| r.step(CLOTH_DT),
-        )
-    });
-    let reference_sag = reference
+/// Size of `run --png` pictures (two panels), pixels.
+const PICTURE_WIDTH: u32 = 1400;
+const PICTURE_HEIGHT: u32 = 700;
+
+/// Largest picture side, pixels.
+const MAX_PICTURE_SIDE: u32 = 8192;
+
+fn check_view(from: Vec3, up: Vec3, size: (u32, u32)) -> Result<render::View, Failure> {
+    if !(1..=MAX_PICTURE_SIDE).contains(&size.0) || !(1..=MAX_PICTURE_SIDE).contains(&size.1) {
+        return Err(Failure::bad_input(format!(
+            "the picture must be between 1 and {MAX_PICTURE_SIDE} pixels on each side"
+        )));
+    }
+    if from.length_squared() == 0.0 || up.cross(from).length_squared() == 0.0 {
+        return Err(Failure::bad_input(
+            "the view direction must be non-zero and not parallel to up",
+        ));
+    }
+    Ok(render::View { from, up, size })
+}
+
+fn generate(
+    shape: ShapeKind,
+    points: usize,
+    radius: f32,
+    rim: f32,
+    size: f32,
+    spacing: f32,
+) -> Result<PointCloud, Failure> {
+    let positive = |name: &str, v: f32| {
+        if v > 0.0 && v.is_finite() {
+            Ok(())
+        } else {
+            Err(Failure::bad_input(format!(
+                "--{name} must be a positive finite number, got {v}"
+            )))
+        }
+    };
+    let count = match shape {
+        ShapeKind::Sphere | ShapeKind::Hat => {
+            positive("radius", radius)?;
+            if !(-1.0..=1.0).contains(&rim) {
+                return Err(Failure::bad_input("--rim must be between -1 and 1"));
+            }
+            points as f64
+        }
+        ShapeKind::Sheet | ShapeKind::LetterB => {
+            positive("size", size)?;
+            positive("spacing", spacing)?;
+            // A triangular lattice holds about 1.155 points per spacing².
+            1.155 * f64::from(size / spacing).powi(2)
+        }
+    };
+    if !(4.0..=MAX_GENERATED_POINTS as f64).contains(&count) {
+        return Err(Failure::bad_input(format!(
+            "that would be about {count:.0} points; generate writes 4 to {MAX_GENERATED_POINTS}"
+        )));
+    }
+    Ok(match shape {
+        ShapeKind::Sphere => shapes::fibonacci_sphere(points, radius),
+        ShapeKind::Hat => shapes::hat(points, radius, rim),
+        ShapeKind::Sheet => shapes::square_sheet(size, spacing),
+        ShapeKind::LetterB => shapes::letter_b(size, spacing),
+    })
+}
+
+fn run_scene(
+    path: &Path,
+    output: Option<PathBuf>,
+    png: Option<PathBuf>,
+    view: Vec3,
+    up: Vec3,
+    ascii: bool,
+    json: bool,
+) -> Result<(), Failure> {
+    use std::io::{IsTerminal, Write};
+    let view = png
         .as_ref()
-        .map(|(_, r)| max_sag(&grid.positions, &r.x));
-    let report = ClothBenchReport {
-        benchmark: "cloth-grid",
-        particles: solver.len(),
-        springs: solver.spring_count(),
-        springs_in_runs: solver.springs_in_runs(),
-        steps,
-        dt: CLOTH_DT,
-        integrator: integrator.to_string(),
-        us_per_step,
-        max_sag: sag,
-        finite: diagnostics.guard_trips == 0 && positions.iter().all(|p| p.is_finite()),
-        cg_iterations: diagnostics.cg_iterations,
-        reference_us_per_step: reference.as_ref().map(|(t, _)| *t),
-        reference_max_sag: reference_sag,
-        sag_difference: reference_sag.map(|r| (r - sag).abs()),
-        max_position_difference: reference.as_ref().map(|(_, r)| {
-            r.x.iter()
-                .zip(&positions)
-                .map(|(a, b)| a.distance(*b))
-                .fold(0.0, f32::max)
-        }),
-        speedup: reference.as_ref().map(|(t, _)| t / us_per_step),
+        .map(|_| check_view(view, up, (PICTURE_WIDTH, PICTURE_HEIGHT)))
+        .transpose()?;
+    let (scene, base) = Scene::load(path).map_err(Failure::bad_input)?;
+    let mut run = scene.prepare(&base).map_err(Failure::bad_input)?;
+    let tty = std::io::stderr().is_terminal();
+    let total = scene.steps;
+    run.run(&mut |step| {
+        if tty && (step % 10 == 0 || step == total) {
+            let _ = write!(std::io::stderr(), "\rrun: step {step} of {total}   ");
+            let _ = std::io::stderr().flush();
+        }
+    })
+    .map_err(Failure::other)?;
+    if tty {
+        eprintln!();
+    }
+    let energy = run.solver.energy().total();
+    let deformed = run.deformed().map_err(Failure::other)?;
+    if let Some(out) = &output {
+        write_ply(out, &deformed.cloud, encoding(ascii)).map_err(Failure::other)?;
+    }
+    if let (Some(picture), Some(view)) = (&png, &view) {
+        render::render(&[&run.dense, &deformed.cloud], view, picture).map_err(Failure::other)?;
+    }
+    let finite = run.guard_trips == 0
+        && energy.is_finite()
+        && deformed
+            .cloud
+            .positions()
+            .iter()
+            .chain(deformed.cloud.normals().unwrap_or_default())
+            .all(|v| v.is_finite());
+    let r = &run.network.report;
+    let report = RunReport {
+        scene: path.display().to_string(),
+        output: output.as_ref().map(|p| p.display().to_string()),
+        png: png.as_ref().map(|p| p.display().to_string()),
+        dense_points: deformed.cloud.len(),
+        dense_points_at_rest: run.dense.len(),
+        sim_points: r.points,
+        springs: run.solver.spring_count(),
+        stretch_springs: r.stretch_springs,
+        bend_springs: r.bend_springs,
+        pinned_points: run.pinned,
+        pulled_points: run.pulled_points(),
+        steps: run.step,
+        dt: scene.dt,
+        integrator: scene.integrator.to_string(),
+        substeps: run.substeps,
+        cg_iterations: run.cg_iterations,
+        guard_trips: run.guard_trips,
+        limited_steps: run.limited_steps,
+        ms_prepare: run.prepare_seconds * 1e3,
+        ms_per_step: run.simulate_seconds * 1e3 / run.step.max(1) as f64,
+        ms_transfer: deformed.transfer_seconds * 1e3,
+        ms_resample: deformed.resample_seconds * 1e3,
+        max_displacement: deformed.max_displacement,
+        energy_final: energy,
+        finite,
+        resampled_points: deformed.resampled.inserted,
     };
     if json {
         return print_json(&report);
     }
     println!(
-        "cloth-grid    {} particles, {} springs ({} in vectorised runs), {} steps of {:.6} s, {}",
-        report.particles,
-        report.springs,
-        report.springs_in_runs,
-        report.steps,
-        report.dt,
-        report.integrator
+        "scene         {} ({} steps of {} s, {})",
+        report.scene, report.steps, report.dt, report.integrator
     );
     println!(
-        "solver        {:.2} µs/step, max sag {:.6}",
-        report.us_per_step, report.max_sag
+        "surface       {} dense points at rest, {} simulation points, {} springs ({} pinned)",
+        report.dense_points_at_rest, report.sim_points, report.springs, report.pinned_points
     );
-    if let (Some(t), Some(s), Some(d), Some(x)) = (
-        report.reference_us_per_step,
-        report.reference_max_sag,
-        report.speedup,
-        report.max_position_difference,
-    ) {
-        println!("reference     {t:.2} µs/step, max sag {s:.6}");
-        println!("speedup       {d:.2}×; final positions differ by at most {x:.2e}");
+    println!(
+        "simulation    {:.3} ms per step ({} sub-steps, {} CG iterations, {} guard trips)",
+        report.ms_per_step, report.substeps, report.cg_iterations, report.guard_trips
+    );
+    println!(
+        "transfer      {:.2} ms (+ {:.2} ms resampling: {} points added)",
+        report.ms_transfer, report.ms_resample, report.resampled_points
+    );
+    println!(
+        "result        largest displacement {:.4}, energy {:.4e}, finite: {}",
+        report.max_displacement, report.energy_final, report.finite
+    );
+    for out in report.output.iter().chain(&report.png) {
+        println!("written       {out}");
     }
     Ok(())
 }
