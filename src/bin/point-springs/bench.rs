@@ -66,12 +66,15 @@ pub enum BenchCase {
         /// Gaussian bandwidth, a multiple of the farthest neighbour's distance.
         #[arg(long, default_value_t = DEFAULT_BANDWIDTH)]
         bandwidth: f32,
-        /// Timed runs of each; the fastest counts.
+        /// Timed rounds (each times every method); the fastest round of each counts.
         #[arg(long, default_value_t = 5)]
         repeat: usize,
         /// Skip the literal per-frame method.
         #[arg(long)]
         no_literal: bool,
+        /// Threads for both methods (default: one per core).
+        #[arg(long)]
+        threads: Option<usize>,
         /// Print JSON instead of text.
         #[arg(long)]
         json: bool,
@@ -90,6 +93,9 @@ pub enum SimSource {
 
 /// Most dense points the transfer benchmark takes.
 const MAX_BENCH_POINTS: usize = 20_000_000;
+
+/// Most threads the transfer benchmark accepts.
+const MAX_BENCH_THREADS: usize = 256;
 
 /// Amplitude of the benchmark's bulge: u(x) = A·y₊²·x.
 const BULGE: f32 = 0.2;
@@ -180,15 +186,25 @@ fn errors(rest: &[Vec3], normals: &[Vec3], positions: &[Vec3], deformed: &[Vec3]
     e
 }
 
-/// The fastest of `repeat` runs of `f`, milliseconds.
-fn best_ms(repeat: usize, mut f: impl FnMut()) -> f64 {
-    (0..repeat.max(1))
-        .map(|_| {
-            let start = Instant::now();
-            f();
-            start.elapsed().as_secs_f64() * 1e3
-        })
-        .fold(f64::INFINITY, f64::min)
+/// A timed sample lasts about this long.
+const SAMPLE_MS: f64 = 5.0;
+/// Calls in a sample at most.
+const MAX_SAMPLE_CALLS: usize = 10_000;
+
+/// Milliseconds per call of `f`, over `calls` calls.
+fn per_call_ms(calls: usize, f: &mut dyn FnMut()) -> f64 {
+    let start = Instant::now();
+    for _ in 0..calls {
+        f();
+    }
+    start.elapsed().as_secs_f64() * 1e3 / calls as f64
+}
+
+/// Calls of `f` that last about [`SAMPLE_MS`] (after one warm-up call).
+fn calls_for(f: &mut dyn FnMut()) -> usize {
+    f();
+    let once = per_call_ms(1, f);
+    ((SAMPLE_MS / once.max(1e-6)).ceil() as usize).clamp(1, MAX_SAMPLE_CALLS)
 }
 
 fn transfer(b: &TransferBench, json: bool) -> Result<(), Failure> {
@@ -218,23 +234,38 @@ fn transfer(b: &TransferBench, json: bool) -> Result<(), Failure> {
     let precompute_ms = start.elapsed().as_secs_f64() * 1e3;
     let mut positions = vec![Vec3::ZERO; rest.len()];
     let mut deformed = vec![Vec3::ZERO; rest.len()];
-    // Lengths match by construction: the calls cannot fail.
-    let apply_ms = best_ms(b.repeat, || {
+    let mut literal_out = (Vec::new(), Vec::new());
+    // Rounds interleave the methods, so that a machine that slows down or speeds up over
+    // the run (other tenants, clock changes) does not tilt the ratio; each round times the
+    // cheap methods over enough calls to last a few milliseconds. The fastest round counts.
+    // The lengths match by construction: the calls cannot fail.
+    let (mut apply_ms, mut apply_positions_ms, mut literal_ms) =
+        (f64::INFINITY, f64::INFINITY, f64::INFINITY);
+    let calls = calls_for(&mut || {
         let _ = t.apply(&disp, &mut positions, &mut deformed);
     });
-    let apply_positions_ms = best_ms(b.repeat, || {
-        let _ = t.apply_positions(&disp, &mut positions);
-    });
+    for _ in 0..b.repeat.max(1) {
+        apply_ms = apply_ms.min(per_call_ms(calls, &mut || {
+            let _ = t.apply(&disp, &mut positions, &mut deformed);
+        }));
+        apply_positions_ms = apply_positions_ms.min(per_call_ms(calls, &mut || {
+            let _ = t.apply_positions(&disp, &mut positions);
+        }));
+        if !b.no_literal {
+            literal_ms = literal_ms.min(per_call_ms(1, &mut || {
+                literal_out = literal_transfer(rest, normals, &sim, &disp, b.config, PCA_K);
+            }));
+        }
+    }
     let _ = t.apply(&disp, &mut positions, &mut deformed);
     let errors_gradient = errors(rest, normals, &positions, &deformed);
     let pca = pca_normals_of(&positions, &deformed, PCA_K);
     let errors_pca = errors(rest, normals, &positions, &pca);
     let literal = (!b.no_literal).then(|| {
-        let mut out = (Vec::new(), Vec::new());
-        let ms = best_ms(b.repeat, || {
-            out = literal_transfer(rest, normals, &sim, &disp, b.config, PCA_K);
-        });
-        (ms, errors(rest, normals, &out.0, &out.1))
+        (
+            literal_ms,
+            errors(rest, normals, &literal_out.0, &literal_out.1),
+        )
     });
     let fits = t.report();
     let report = TransferBenchReport {
@@ -348,18 +379,29 @@ pub fn bench(case: BenchCase) -> Result<(), Failure> {
             bandwidth,
             repeat,
             no_literal,
+            threads,
             json,
-        } => transfer(
-            &TransferBench {
+        } => {
+            let mut pool = rayon::ThreadPoolBuilder::new();
+            if let Some(threads) = threads {
+                if !(1..=MAX_BENCH_THREADS).contains(&threads) {
+                    return Err(Failure::bad_input(format!(
+                        "--threads must be between 1 and {MAX_BENCH_THREADS}"
+                    )));
+                }
+                pool = pool.num_threads(threads);
+            }
+            let pool = pool.build().map_err(Failure::other)?;
+            let bench = TransferBench {
                 points,
                 sim,
                 sim_source,
                 config: TransferConfig { k, bandwidth },
                 repeat,
                 no_literal,
-            },
-            json,
-        ),
+            };
+            pool.install(|| transfer(&bench, json))
+        }
     }
 }
 
