@@ -7,9 +7,11 @@
 //!
 //! * [`core`] — pure Rust on plain slices (glam, spade, kiddo; no Bevy): point-cloud I/O,
 //!   k-NN, PCA normals with consistent orientation, procedural test surfaces, the paper's
-//!   tangent-plane Delaunay simplification (§3), the spring network with masses (§4) and the
+//!   tangent-plane Delaunay simplification (§3), the spring network with masses (§4), the
 //!   dynamics of eq 2–6 (forces, explicit, symplectic and implicit Euler, stable-step
-//!   estimates and a guard). It builds and tests without Bevy (`--no-default-features`).
+//!   estimates and a guard), the displacement transfer back to the dense surface with
+//!   normals and resampling (§5), and scene files that run all of it. It builds and tests
+//!   without Bevy (`--no-default-features`).
 //! * `plugin` (feature `plugin`, on by default) — the Bevy 0.19 layer: ECS components and the
 //!   fixed-tick system sets that later stages fill.
 //!
@@ -40,11 +42,13 @@ pub mod prelude {
     pub use crate::core::io::{CloudFormat, LoadError, PlyEncoding, read_cloud, write_ply};
     pub use crate::core::network::{NetworkConfig, SpringNetwork, build_network};
     pub use crate::core::normals::{NormalSource, ensure_normals, estimate_normals};
+    pub use crate::core::scene::{Scene, SceneError, SceneRun};
     pub use crate::core::simplify::{SimplifyConfig, simplify, simplify_cloud};
     pub use crate::core::solver::{
         Anchor, AnchorId, DampingModel, Integrator, Solver, SolverConfig, SolverError,
         SpringMaterial, SpringSpec, SubstepPolicy,
     };
+    pub use crate::core::transfer::{Transfer, TransferConfig, TransferError};
     pub use crate::core::{Aabb, PointCloud};
 
     #[cfg(feature = "render")]

@@ -27,7 +27,20 @@
 //! [`Scene::prepare`] loads and preprocesses everything (normals, §3 simplification, §4
 //! network, §5 transfer coefficients) into a [`SceneRun`]; [`SceneRun::run`] steps it;
 //! [`SceneRun::deformed`] transfers the motion to the dense points (and resamples where the
-//! scene asks for it).
+//! scene asks for it):
+//!
+//! ```
+//! use bevy_point_springs::core::scene::Scene;
+//! use bevy_point_springs::prelude::*;
+//!
+//! let (scene, base) = Scene::load("assets/scenes/hat.ron".as_ref()).unwrap();
+//! let mut run = scene.prepare(&base).unwrap(); // normals, §3, §4, §5 coefficients
+//! run.run(&mut |_step| {}).unwrap(); // 300 implicit Euler steps
+//! let deformed = run.deformed().unwrap(); // §5 transfer, normals, resampling
+//! assert!(deformed.resampled.inserted > 0); // the stretched crown got new points
+//! let out = std::env::temp_dir().join("hat.ply");
+//! write_ply(&out, &deformed.cloud, PlyEncoding::BinaryLittleEndian).unwrap();
+//! ```
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;

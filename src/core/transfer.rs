@@ -28,6 +28,27 @@
 //! any affine motion, and no k-NN search or PCA per frame. [`pca_normals_of`] recomputes
 //! normals the paper's way, for comparison; [`literal_transfer`] is the paper's whole
 //! per-frame method, kept as the baseline the precomputed transfer is measured against.
+//!
+//! ```
+//! use bevy_point_springs::core::shapes::fibonacci_sphere;
+//! use bevy_point_springs::core::transfer::{Transfer, TransferConfig};
+//! use glam::{Quat, Vec3};
+//!
+//! let dense = fibonacci_sphere(2000, 1.0);
+//! let sim_rest = fibonacci_sphere(200, 1.0).positions().to_vec();
+//! let (p, n) = (dense.positions(), dense.normals().unwrap());
+//! // Once:
+//! let transfer = Transfer::new(p, n, &sim_rest, TransferConfig::default()).unwrap();
+//! // Every frame: the simulation points' displacements in, the dense surface out.
+//! let turn = Quat::from_rotation_y(0.5);
+//! let displacements: Vec<Vec3> = sim_rest.iter().map(|&s| turn * s - s).collect();
+//! let (positions, normals) = transfer.deform(&displacements).unwrap();
+//! // A rigid motion comes back exactly, normals included.
+//! for i in 0..p.len() {
+//!     assert!(positions[i].distance(turn * p[i]) < 1e-5);
+//!     assert!(normals[i].distance(turn * n[i]) < 1e-5);
+//! }
+//! ```
 
 use glam::{DVec3, Vec3, Vec3A, Vec3Swizzles, Vec4};
 use rayon::prelude::*;
