@@ -56,17 +56,9 @@ fn moves(run: &SceneRun, deformed: &Deformed) -> Vec<(Vec3, Vec3)> {
 /// sorted ascending.
 fn spread(rest: &[Vec3], deformed: &[Vec3]) -> Vec<f32> {
     let mean6 = |points: &[Vec3]| {
-        let graph = KnnIndex::build(points).knn_graph(points, 6);
-        (0..points.len())
-            .map(|i| {
-                graph
-                    .neighbour_dist2(i)
-                    .iter()
-                    .map(|d| d.sqrt())
-                    .sum::<f32>()
-                    / 6.0
-            })
-            .collect::<Vec<f32>>()
+        KnnIndex::build(points)
+            .knn_graph(points, 6)
+            .mean_distances()
     };
     let (before, after) = (mean6(rest), mean6(deformed));
     let mut ratio: Vec<f32> = before.iter().zip(&after).map(|(b, a)| a / b).collect();

@@ -234,18 +234,8 @@ fn bad_input_gets_typed_errors() {
 /// Mean distance from each point to its 6 nearest, averaged over the cloud.
 fn mean_spacing(points: &[Vec3]) -> f32 {
     let index = bevy_point_springs::core::knn::KnnIndex::build(points);
-    let graph = index.knn_graph(points, 6);
-    (0..points.len())
-        .map(|i| {
-            graph
-                .neighbour_dist2(i)
-                .iter()
-                .map(|d| d.sqrt())
-                .sum::<f32>()
-                / 6.0
-        })
-        .sum::<f32>()
-        / points.len() as f32
+    let spacing = index.knn_graph(points, 6).mean_distances();
+    spacing.iter().sum::<f32>() / points.len() as f32
 }
 
 #[test]

@@ -226,6 +226,18 @@ impl KnnGraph {
     pub fn dist2(&self) -> &[f32] {
         &self.dist2
     }
+
+    /// Each point's mean distance to its neighbours: the local spacing of the sampling
+    /// (empty when the graph has no columns).
+    pub fn mean_distances(&self) -> Vec<f32> {
+        if self.k == 0 {
+            return Vec::new();
+        }
+        self.dist2
+            .chunks_exact(self.k)
+            .map(|row| row.iter().map(|d2| d2.sqrt()).sum::<f32>() / self.k as f32)
+            .collect()
+    }
 }
 
 #[cfg(test)]
@@ -272,6 +284,16 @@ mod tests {
             .map(|w| pts[w[0] as usize].distance(pts[w[1] as usize]))
             .sum();
         assert!(steps / 999.0 < 2.0);
+    }
+
+    #[test]
+    fn mean_distances_are_the_local_spacing() {
+        let line: Vec<Vec3> = (0..5).map(|i| Vec3::X * i as f32).collect();
+        let g = KnnIndex::build(&line).knn_graph(&line, 2);
+        // The ends see 1 and 2 away, the middle points 1 and 1.
+        assert_eq!(g.mean_distances(), vec![1.5, 1.0, 1.0, 1.0, 1.5]);
+        let one = [Vec3::ONE];
+        assert!(KnnIndex::build(&one).knn_graph(&one, 3).mean_distances().is_empty());
     }
 
     #[test]

@@ -123,18 +123,9 @@ impl Resampler {
     pub fn new(transfer: &Transfer) -> Self {
         let rest = transfer.rest_positions();
         let index = KnnIndex::build(rest);
-        let graph = index.knn_graph(rest, SPACING_NEIGHBOURS);
-        let spacing: Vec<f32> = (0..rest.len())
-            .into_par_iter()
-            .map(|i| {
-                let d = graph.neighbour_dist2(i);
-                if d.is_empty() {
-                    0.0
-                } else {
-                    d.iter().map(|d2| d2.sqrt()).sum::<f32>() / d.len() as f32
-                }
-            })
-            .collect();
+        let mut spacing = index.knn_graph(rest, SPACING_NEIGHBOURS).mean_distances();
+        // A single point has no neighbours, and no spacing to keep.
+        spacing.resize(rest.len(), 0.0);
         Self {
             sampled: spacing.clone(),
             spacing,

@@ -5,11 +5,12 @@
 //! state* are expressed in p's tangent frame (t₁, t₂, n): coordinates (x̄, ȳ) in the plane,
 //! z̄ along the normal. Each displacement component u is fitted by weighted linear least
 //! squares with Gaussian weights w = exp(−r²/h²), r the distance from p to a neighbour's
-//! projection on the plane and h = `bandwidth` × the distance to the farthest neighbour. The fitted value at p,
-//! u(p) = a₀ = e₀ᵀA⁻¹PᵀWu, is a fixed linear combination Σⱼ cⱼuⱼ of the neighbours'
-//! displacements, and so are the tangent derivatives a₁ = ∂u/∂x̄ and a₂ = ∂u/∂ȳ. Those
-//! coefficients are computed once ([`Transfer::new`], in parallel); each frame is then a
-//! sparse matrix–vector product over the displacements ([`Transfer::apply`], in parallel).
+//! projection on the plane and h = `bandwidth` × the distance to the farthest neighbour.
+//! The fitted value at p, u(p) = a₀ = e₀ᵀA⁻¹PᵀWu, is a fixed linear combination Σⱼ cⱼuⱼ of
+//! the neighbours' displacements, and so are the tangent derivatives a₁ = ∂u/∂x̄ and
+//! a₂ = ∂u/∂ȳ. Those coefficients are computed once ([`Transfer::new`], in parallel); each
+//! frame is then a sparse matrix–vector product over the displacements
+//! ([`Transfer::apply`], in parallel for large clouds).
 //!
 //! **The normal coordinate.** The paper fits u = a₀ + a₁x̄ + a₂ȳ on the plane. On a curved
 //! surface the neighbours sit off the plane by z̄ ≈ r²/2R, and an affine motion of them
@@ -18,10 +19,11 @@
 //! curvature. So the fit is u = a₀ + a₁x̄ + a₂ȳ + a₃z̄, which reproduces every affine
 //! displacement exactly, wherever the neighbours leave the plane (no Cholesky pivot below
 //! [`FULL_FIT_PIVOT`]) and the fit does not amplify noise in the displacements more than
-//! [`MAX_AMPLIFICATION`] times (Σ|cⱼ|; 1.0–1.7 on spheres of 338 to 10^4 simulation
-//! points); elsewhere it is the paper's plane fit, exact on coplanar neighbours. Where even the
-//! plane fit is singular (collinear neighbours, fewer than three) the slopes are damped by
-//! a ridge term: the value then tends to a weighted mean, never NaN.
+//! [`MAX_AMPLIFICATION`] times (Σ|cⱼ|; every dense point of the benchmark spheres passes,
+//! see [`Transfer::report`]); elsewhere it is the paper's plane fit, exact on coplanar
+//! neighbours. Where even the plane fit is singular (collinear neighbours, fewer than
+//! three) the slopes are damped by a ridge term: the value then tends to a weighted mean,
+//! never NaN.
 //!
 //! **Normals.** The deformed tangents are t₁ + a₁ and t₂ + a₂ (a₁, a₂ the fitted
 //! derivatives of the displacement), the deformed normal their cross product: exact for

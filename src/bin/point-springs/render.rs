@@ -96,13 +96,13 @@ pub fn render(clouds: &[&PointCloud], view: &View, path: &Path) -> Result<Drawn,
             .normals()
             .ok_or("a cloud has no normals to light it with")?;
         // Each disc as wide as its own neighbourhood: stretched regions get larger discs.
-        let graph = KnnIndex::build(positions).knn_graph(positions, SPACING_NEIGHBOURS);
-        let radius: Vec<f32> = (0..positions.len())
-            .map(|i| {
-                let d = graph.neighbour_dist2(i);
-                let mean = d.iter().map(|d2| d2.sqrt()).sum::<f32>() / d.len().max(1) as f32;
-                (DISC_SPACING * mean * scale).max(MIN_DISC_PX)
-            })
+        let mut spacing = KnnIndex::build(positions)
+            .knn_graph(positions, SPACING_NEIGHBOURS)
+            .mean_distances();
+        spacing.resize(positions.len(), 0.0);
+        let radius: Vec<f32> = spacing
+            .iter()
+            .map(|s| (DISC_SPACING * s * scale).max(MIN_DISC_PX))
             .collect();
         let mut order: Vec<usize> = (0..positions.len()).collect();
         let depth = |i: usize| (positions[i] - centre).dot(w);
