@@ -102,7 +102,11 @@ fn the_sphere_is_dented_where_it_is_poked() {
 
 #[test]
 fn the_hat_gets_a_crown_and_no_holes() {
-    let (run, deformed) = run_scene("hat.ron", |_| {});
+    let (mut run, deformed) = run_scene("hat.ron", |_| {});
+    // Asked again for the same state, the surface needs no more points.
+    let again = run.deformed().unwrap();
+    assert_eq!(again.resampled.inserted, 0, "{:?}", again.resampled);
+    assert_eq!(again.cloud.len(), deformed.cloud.len());
     let moved = moves(&run, &deformed);
     // The middle (the bottom pole) went 0.9 further out; the held rim stayed.
     let (pole, pole_now) = moved

@@ -293,7 +293,12 @@ mod tests {
         // The ends see 1 and 2 away, the middle points 1 and 1.
         assert_eq!(g.mean_distances(), vec![1.5, 1.0, 1.0, 1.0, 1.5]);
         let one = [Vec3::ONE];
-        assert!(KnnIndex::build(&one).knn_graph(&one, 3).mean_distances().is_empty());
+        assert!(
+            KnnIndex::build(&one)
+                .knn_graph(&one, 3)
+                .mean_distances()
+                .is_empty()
+        );
     }
 
     #[test]

@@ -608,6 +608,7 @@ impl Scene {
             guard_trips: 0,
             limited_steps: 0,
             cg_iterations: 0,
+            resampler: None,
         })
     }
 }
@@ -651,6 +652,8 @@ pub struct SceneRun {
     pub limited_steps: u64,
     /// Conjugate-gradient iterations.
     pub cg_iterations: u64,
+    /// The rest spacing the resampling keeps track of (from the first resampling on).
+    resampler: Option<Resampler>,
 }
 
 /// The deformed dense surface.
@@ -744,13 +747,16 @@ impl SceneRun {
     }
 
     /// The deformed dense surface: the transfer of the current displacements, after
-    /// resampling when the scene asks for it.
+    /// resampling when the scene asks for it. Inserted points stay and follow the simulation
+    /// from then on; a later call inserts only where the surface has stretched further.
     pub fn deformed(&mut self) -> Result<Deformed, SceneError> {
         let disp = self.displacements();
         let mut resampled = ResampleReport::default();
         let start = Instant::now();
         if let Some(spec) = self.scene.resample {
-            let mut resampler = Resampler::new(&self.transfer);
+            let resampler = self
+                .resampler
+                .get_or_insert_with(|| Resampler::new(&self.transfer));
             resampled = resampler.resample(
                 &mut self.transfer,
                 &disp,
