@@ -240,7 +240,7 @@ fn mean_spacing(points: &[Vec3]) -> f32 {
 
 #[test]
 fn resampling_fills_a_stretched_sheet() {
-    use bevy_point_springs::core::resample::{ResampleConfig, Resampler};
+    use bevy_point_springs::core::resample::{ResampleConfig, ResampleError, Resampler};
     let sheet = shapes::square_sheet(1.0, 0.02);
     let (dense, normals, sim) = surface(&sheet, 150);
     let mut transfer = Transfer::new(&dense, &normals, &sim, TransferConfig::default()).unwrap();
@@ -291,6 +291,13 @@ fn resampling_fills_a_stretched_sheet() {
         ..config
     };
     assert!(resampler.resample(&mut transfer, &disp, &bad).is_err());
+    // So are displacements that do not match the simulation points.
+    assert!(matches!(
+        resampler.resample(&mut transfer, &disp[1..], &config),
+        Err(ResampleError::Transfer(
+            TransferError::DisplacementCount { .. }
+        ))
+    ));
 }
 
 #[test]

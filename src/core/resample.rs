@@ -155,8 +155,7 @@ impl Resampler {
                 "the cap on new points must be finite and not negative",
             ));
         }
-        // Validates the displacements.
-        transfer.apply_positions(displacements, &mut vec![Vec3::ZERO; transfer.len()])?;
+        transfer.check(displacements, &[])?;
         let displacements = &simd_displacements(displacements);
         let mut report = ResampleReport::default();
         let budget = (transfer.len() as f64 * f64::from(config.max_new_per_point)) as usize;
@@ -166,22 +165,23 @@ impl Resampler {
             // Candidates from every over-stretched point, in point order: the midpoint to
             // its neighbour on either side along the stretch (none past a boundary).
             let index = KnnIndex::build(&transfer.rest);
-            let splits: Vec<bool> = (0..transfer.len())
+            // Each over-stretched point's stretch direction (the fit and its singular value
+            // computed once per point and pass).
+            let splits: Vec<Option<Vec3>> = (0..transfer.len())
                 .into_par_iter()
                 .map(|i| {
                     let (_, g1, g2) = transfer.fitted(i, k, displacements);
-                    let (sigma, _) = stretch(transfer.normals[i], g1, g2);
+                    let (sigma, dir) = stretch(transfer.normals[i], g1, g2);
                     let s = self.spacing[i];
-                    s > 0.0 && sigma * s > config.factor * self.sampled[i]
+                    (s > 0.0 && sigma * s > config.factor * self.sampled[i]).then_some(dir)
                 })
                 .collect();
-            let candidates: Vec<(Vec3, Vec3, f32, f32)> = (0..transfer.len())
-                .into_par_iter()
-                .filter(|&i| splits[i])
-                .flat_map_iter(|i| {
-                    let (_, g1, g2) = transfer.fitted(i, k, displacements);
+            let candidates: Vec<(Vec3, Vec3, f32, f32)> = splits
+                .par_iter()
+                .enumerate()
+                .filter_map(|(i, dir)| dir.map(|dir| (i, dir)))
+                .flat_map_iter(|(i, dir)| {
                     let n = transfer.normals[i];
-                    let (_, dir) = stretch(n, g1, g2);
                     let (s, sampled) = (self.spacing[i], self.sampled[i]);
                     let p = transfer.rest[i];
                     let found = index.nearest(p, SIDE_NEIGHBOURS + 1);
@@ -220,7 +220,7 @@ impl Resampler {
             }
             // A point that split now has neighbours at half its spacing.
             for (s, split) in self.spacing.iter_mut().zip(&splits) {
-                if *split {
+                if split.is_some() {
                     *s *= 0.5;
                 }
             }

@@ -440,7 +440,12 @@ impl Transfer {
         self.terms.len() * std::mem::size_of::<Term>()
     }
 
-    fn check(&self, displacements: &[Vec3], outputs: &[usize]) -> Result<(), TransferError> {
+    /// Checks the displacement count and the output lengths.
+    pub(crate) fn check(
+        &self,
+        displacements: &[Vec3],
+        outputs: &[usize],
+    ) -> Result<(), TransferError> {
         if displacements.len() != self.sim_rest.len() {
             return Err(TransferError::DisplacementCount {
                 expected: self.sim_rest.len(),
