@@ -9,7 +9,7 @@ use bevy_point_springs::core::simplify::{SimplifyConfig, simplify};
 use bevy_point_springs::core::solver::cloth::{
     CLOTH_DT, CLOTH_SIZE, CLOTH_STEPS, ReferenceCloth, cloth_grid, max_sag,
 };
-use bevy_point_springs::core::solver::{Integrator, SubstepPolicy};
+use bevy_point_springs::core::solver::{Integrator, Solver, SubstepPolicy};
 use bevy_point_springs::core::transfer::{
     DEFAULT_BANDWIDTH, DEFAULT_TRANSFER_K, Transfer, TransferConfig, literal_transfer,
     pca_normals_of,
@@ -36,8 +36,9 @@ pub enum BenchCase {
         /// given).
         #[arg(long, default_value_t = Integrator::SymplecticEuler)]
         integrator: Integrator,
-        /// Timed runs of each; the fastest counts.
-        #[arg(long, default_value_t = 3)]
+        /// Timed runs of each, alternating between the solver and the reference; the
+        /// fastest of each counts.
+        #[arg(long, default_value_t = 5)]
         repeat: usize,
         /// Skip the straightforward reference loop.
         #[arg(long)]
@@ -338,26 +339,42 @@ struct ClothBenchReport {
     speedup: Option<f64>,
 }
 
-/// Times `steps` steps of `step`, `repeat` times from a fresh state; the fastest run's
-/// microseconds per step.
-fn time_steps<S>(
-    repeat: usize,
-    steps: usize,
-    mut fresh: impl FnMut() -> S,
-    mut step: impl FnMut(&mut S),
-) -> (f64, S) {
-    let mut best = f64::INFINITY;
-    let mut last = fresh();
-    for _ in 0..repeat.max(1) {
-        let mut state = fresh();
+/// A state that can be stepped and timed.
+struct Timed<S, F> {
+    fresh: F,
+    step: fn(&mut S),
+    best: f64,
+    last: Option<S>,
+}
+
+impl<S, F: FnMut() -> S> Timed<S, F> {
+    fn new(fresh: F, step: fn(&mut S)) -> Self {
+        Self {
+            fresh,
+            step,
+            best: f64::INFINITY,
+            last: None,
+        }
+    }
+
+    /// One timed run of `steps` steps from a fresh state; keeps the fastest microseconds
+    /// per step.
+    fn round(&mut self, steps: usize) {
+        let mut state = (self.fresh)();
         let start = Instant::now();
         for _ in 0..steps {
-            step(&mut state);
+            (self.step)(&mut state);
         }
-        best = best.min(start.elapsed().as_secs_f64() * 1e6 / steps.max(1) as f64);
-        last = state;
+        let us = start.elapsed().as_secs_f64() * 1e6 / steps.max(1) as f64;
+        self.best = self.best.min(us);
+        self.last = Some(state);
     }
-    (best, last)
+
+    /// The fastest microseconds per step and the final state of the last run.
+    fn finish(mut self) -> (f64, S) {
+        let last = self.last.take().unwrap_or_else(|| (self.fresh)());
+        (self.best, last)
+    }
 }
 
 /// Runs a benchmark.
@@ -417,27 +434,33 @@ fn cloth(
     let solver = grid
         .solver_with(integrator, SubstepPolicy::Unchecked)
         .map_err(Failure::bad_input)?;
-    let (us_per_step, solver) = time_steps(
-        repeat,
-        steps,
+    // Rounds alternate between the two, so that both see the same machine (the other
+    // core's load and the clock drift over seconds here); the fastest round of each counts.
+    let mut timed_solver = Timed::new(
         || solver.clone(),
-        |s| {
-            // The step is valid by construction; a guard trip shows in `finite` and the
-            // diagnostics.
+        // The step is valid by construction; a guard trip shows in `finite` and the
+        // diagnostics.
+        |s: &mut Solver| {
             let _ = s.step(CLOTH_DT);
         },
     );
+    let mut timed_reference = (!no_reference).then(|| {
+        Timed::new(
+            || ReferenceCloth::new(&grid),
+            |r: &mut ReferenceCloth| r.step(CLOTH_DT),
+        )
+    });
+    for _ in 0..repeat.max(1) {
+        timed_solver.round(steps);
+        if let Some(r) = &mut timed_reference {
+            r.round(steps);
+        }
+    }
+    let (us_per_step, solver) = timed_solver.finish();
     let positions = solver.positions();
     let sag = max_sag(&grid.positions, &positions);
     let diagnostics = solver.diagnostics();
-    let reference = (!no_reference).then(|| {
-        time_steps(
-            repeat,
-            steps,
-            || ReferenceCloth::new(&grid),
-            |r| r.step(CLOTH_DT),
-        )
-    });
+    let reference = timed_reference.map(Timed::finish);
     let reference_sag = reference
         .as_ref()
         .map(|(_, r)| max_sag(&grid.positions, &r.x));

@@ -1209,7 +1209,16 @@ impl Solver {
                 &mut self.spare_v.z,
             ),
         ] {
-            insane += integrate_axis::<SYMPLECTIC>(x, v, fa, fb, inv, h, x_out, v_out);
+            insane += pulp::Arch::new().dispatch(IntegrateAxis::<SYMPLECTIC> {
+                x,
+                v,
+                fa,
+                fb,
+                inv,
+                h,
+                x_out,
+                v_out,
+            });
         }
         std::mem::swap(&mut self.x, &mut self.spare_x);
         std::mem::swap(&mut self.v, &mut self.spare_v);
@@ -1239,10 +1248,34 @@ impl Solver {
     }
 }
 
+/// [`integrate_axis`]'s arguments, handed to [`pulp`] so that the loop is compiled for the
+/// widest vector unit the processor has (see the spring kernel's `Accumulate`).
+struct IntegrateAxis<'a, const SYMPLECTIC: bool> {
+    x: &'a [f32],
+    v: &'a [f32],
+    fa: &'a [f32],
+    fb: &'a [f32],
+    inv: &'a [f32],
+    h: f32,
+    x_out: &'a mut [f32],
+    v_out: &'a mut [f32],
+}
+
+impl<const SYMPLECTIC: bool> pulp::WithSimd for IntegrateAxis<'_, SYMPLECTIC> {
+    type Output = u32;
+
+    #[inline(always)]
+    fn with_simd<S: pulp::Simd>(self, _simd: S) -> u32 {
+        integrate_axis::<SYMPLECTIC>(
+            self.x, self.v, self.fa, self.fb, self.inv, self.h, self.x_out, self.v_out,
+        )
+    }
+}
+
 /// One axis of an explicit step (see [`Solver::integrate`]); counts new components that are
 /// not finite or beyond [`STATE_LIMIT`] (branch-free, so the loop vectorises).
 #[allow(clippy::too_many_arguments)]
-#[inline]
+#[inline(always)]
 fn integrate_axis<const SYMPLECTIC: bool>(
     x: &[f32],
     v: &[f32],
