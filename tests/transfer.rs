@@ -7,7 +7,7 @@ use bevy_point_springs::core::io::read_cloud;
 use bevy_point_springs::core::shapes;
 use bevy_point_springs::core::simplify::{SimplifyConfig, simplify};
 use bevy_point_springs::core::transfer::{
-    Transfer, TransferConfig, TransferError, literal_transfer,
+    NARROW_INDEX_LIMIT, Transfer, TransferConfig, TransferError, literal_transfer,
 };
 use glam::{Mat3, Quat, Vec3};
 
@@ -327,5 +327,49 @@ fn fine_networks_reproduce_a_rigid_motion_too() {
             "{i}"
         );
         assert!((nrm[i] - rotation * n[i]).length() < 1e-5, "{i}");
+    }
+}
+
+#[test]
+fn more_than_65536_simulation_points_take_wide_indices() {
+    // Up to 2^16 simulation points, neighbour indices are stored in 16 bits; past that, in 32.
+    // Both give the same transfer: a rigid motion comes back exactly, and the last simulation
+    // points (whose indices do not fit in 16 bits) are followed too.
+    let k = TransferConfig::default().k;
+    for sims in [NARROW_INDEX_LIMIT, NARROW_INDEX_LIMIT + 4000] {
+        let sim = shapes::fibonacci_sphere(sims, 1.0);
+        // The dense points: a cap around the last simulation points (whose indices need all
+        // 32 bits when there are more than 2^16).
+        let (p, n) = (
+            &sim.positions()[sims - 3000..],
+            &sim.normals().unwrap()[sims - 3000..],
+        );
+        let transfer = Transfer::new(p, n, sim.positions(), TransferConfig::default()).unwrap();
+        let index_bytes = if sims <= NARROW_INDEX_LIMIT { 2 } else { 4 };
+        assert_eq!(
+            transfer.coefficient_bytes(),
+            p.len() * k * (3 * 4 + index_bytes),
+            "{sims}"
+        );
+        let rotation = Mat3::from_quat(Quat::from_axis_angle(
+            Vec3::new(1.0, 2.0, -1.0).normalize(),
+            0.7,
+        ));
+        let disp: Vec<Vec3> = sim.positions().iter().map(|s| rotation * *s - *s).collect();
+        let (pos, nrm) = transfer.deform(&disp).unwrap();
+        let mut worst: f32 = 0.0;
+        for i in 0..p.len() {
+            worst = worst.max((pos[i] - rotation * p[i]).length());
+            assert!((nrm[i] - rotation * n[i]).length() < 1e-5, "{sims}: {i}");
+        }
+        assert!(worst < 1e-5, "{sims}: {worst}");
+        // A displacement of only the last simulation point moves the dense point at its
+        // place, and only points near it.
+        let mut one = vec![Vec3::ZERO; sims];
+        one[sims - 1] = Vec3::X;
+        let (pos, _) = transfer.deform(&one).unwrap();
+        let moved = |i: usize| (pos[i] - p[i]).x;
+        assert!(moved(p.len() - 1) > 0.2, "{sims}: {}", moved(p.len() - 1));
+        assert_eq!(moved(0), 0.0, "{sims}");
     }
 }

@@ -52,7 +52,7 @@
 //! }
 //! ```
 
-use glam::{DVec3, Vec3, Vec3A, Vec3Swizzles, Vec4};
+use glam::{DVec3, Vec3, Vec3A};
 use rayon::prelude::*;
 
 use crate::core::knn::KnnIndex;
@@ -65,15 +65,14 @@ pub const DEFAULT_TRANSFER_K: usize = 10;
 /// Largest k accepted.
 pub const MAX_TRANSFER_K: usize = 32;
 
-/// Most simulation points a transfer follows: indices are stored in the 23 mantissa bits of
-/// an `f32` beside the coefficients.
+/// Most simulation points a transfer follows (a bound on the memory a bad input can ask
+/// for; a game's surface has thousands).
 pub const MAX_SIMULATION_POINTS: usize = 1 << 23;
 
-/// The exponent bits that make a stored index a normal number in [2, 4): never a denormal,
-/// whose arithmetic is slow on many processors, nor a NaN.
-const INDEX_TAG: u32 = 0x4000_0000;
-/// The mantissa bits, which hold the index.
-const INDEX_MASK: u32 = (1 << 23) - 1;
+/// Up to this many simulation points, neighbour indices are stored in 16 bits: a frame then
+/// reads 14 bytes a neighbour instead of 16 (the frame is bound by memory traffic at 10⁶
+/// dense points).
+pub const NARROW_INDEX_LIMIT: usize = 1 << 16;
 
 /// Default Gaussian bandwidth, as a multiple of the farthest neighbour's distance: the
 /// farthest then weighs e⁻⁴ ≈ 2 % (the fit changes little when the neighbour set changes
@@ -250,37 +249,44 @@ enum Fit {
     Regularised,
 }
 
-/// One neighbour of a dense point: the coefficients of its displacement in the fitted value
-/// and in the two tangent slopes (x, y, z), and its index in the mantissa bits of w (see
-/// [`INDEX_TAG`]). One aligned 16-byte SIMD load: each frame streams the terms of every
-/// dense point, so their size and loads are the per-frame cost.
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub(crate) struct Term(Vec4);
+/// A stored neighbour index (16 or 32 bits, see [`NARROW_INDEX_LIMIT`]).
+pub(crate) trait NeighbourIndex: Copy + Default + Send + Sync {
+    /// From an index known to fit.
+    fn new(j: u32) -> Self;
+    /// As an index.
+    fn get(self) -> usize;
+}
 
-impl Term {
-    fn new(c: Vec3A, j: u32) -> Self {
-        debug_assert!((j as usize) < MAX_SIMULATION_POINTS);
-        Self(c.extend(f32::from_bits(INDEX_TAG | j)))
-    }
-
-    /// The coefficients (the w lane, which holds the index, is a number between 2 and 4
-    /// that the arithmetic carries along and nobody reads).
+impl NeighbourIndex for u16 {
     #[inline]
-    fn coefficients(self) -> Vec3A {
-        Vec3A::from_vec4(self.0)
+    fn new(j: u32) -> Self {
+        debug_assert!((j as usize) < NARROW_INDEX_LIMIT);
+        j as u16
     }
+    #[inline(always)]
+    fn get(self) -> usize {
+        usize::from(self)
+    }
+}
 
-    /// The value coefficient.
+impl NeighbourIndex for u32 {
     #[inline]
-    fn value(self) -> f32 {
-        self.0.x
+    fn new(j: u32) -> Self {
+        j
     }
+    #[inline(always)]
+    fn get(self) -> usize {
+        self as usize
+    }
+}
 
-    /// This term's displacement in `table` (indexed by simulation point).
-    #[inline]
-    fn displacement(self, table: &[Vec3A]) -> Vec3A {
-        table[(self.0.w.to_bits() & INDEX_MASK) as usize]
-    }
+/// The simulation points each dense point follows, k a row.
+#[derive(Debug, Clone)]
+pub(crate) enum Neighbours {
+    /// At most [`NARROW_INDEX_LIMIT`] simulation points.
+    Narrow(Vec<u16>),
+    /// More.
+    Wide(Vec<u32>),
 }
 
 /// Precomputed transfer coefficients from simulation points to dense points.
@@ -294,8 +300,13 @@ pub struct Transfer {
     /// a few multiplications are cheaper than reading 32 more bytes per point).
     pub(crate) normals: Vec<Vec3>,
     pub(crate) sim_rest: Vec<Vec3>,
-    /// Row i (k terms): the simulation points dense point i follows, with their coefficients.
-    pub(crate) terms: Vec<Term>,
+    /// Row i: the k simulation points dense point i follows.
+    pub(crate) neighbours: Neighbours,
+    /// Row i (3k numbers): the coefficients of those neighbours' displacements in the fitted
+    /// value, then in the slope along t₁, then along t₂. Each frame streams every row, so
+    /// their size is the per-frame cost; three separate runs let each coefficient be
+    /// broadcast straight from memory.
+    pub(crate) coefficients: Vec<f32>,
     pub(crate) report: FitReport,
 }
 
@@ -355,7 +366,12 @@ impl Transfer {
             rest: Vec::new(),
             normals: Vec::new(),
             sim_rest: sim_rest.to_vec(),
-            terms: Vec::new(),
+            neighbours: if sim_rest.len() <= NARROW_INDEX_LIMIT {
+                Neighbours::Narrow(Vec::new())
+            } else {
+                Neighbours::Wide(Vec::new())
+            },
+            coefficients: Vec::new(),
             report: FitReport::default(),
         };
         let normals: Vec<Vec3> = normals.iter().map(|n| n.normalize()).collect();
@@ -365,32 +381,40 @@ impl Transfer {
 
     /// Adds dense points (validated, unit normals) with their own coefficients.
     pub(crate) fn extend(&mut self, rest: &[Vec3], normals: &[Vec3], index: &KnnIndex) {
-        let k = self.k;
-        let start = self.rest.len();
+        let (k, start) = (self.k, self.rest.len());
         self.rest.extend_from_slice(rest);
         self.normals.extend_from_slice(normals);
-        self.terms.resize((start + rest.len()) * k, Term::default());
+        self.coefficients.resize((start + rest.len()) * 3 * k, 0.0);
+        let coefficients = &mut self.coefficients[start * 3 * k..];
         let (sim, bandwidth) = (&self.sim_rest, self.config.bandwidth);
-        let fits: Vec<Fit> = self.terms[start * k..]
-            .par_chunks_mut(CHUNK * k)
-            .enumerate()
-            .flat_map_iter(|(chunk, terms)| {
-                let mut fits = Vec::with_capacity(terms.len() / k);
-                let mut nbr = Vec::with_capacity(k);
-                let mut coef = vec![Vec3A::ZERO; k];
-                for (row, terms) in terms.chunks_exact_mut(k).enumerate() {
-                    let i = chunk * CHUNK + row;
-                    let (p, n) = (rest[i], normals[i]);
-                    nbr.clear();
-                    nbr.extend(index.nearest(p, k).iter().map(|nb| nb.index));
-                    fits.push(fit_point(p, n, sim, &nbr, bandwidth, &mut coef));
-                    for ((term, &j), c) in terms.iter_mut().zip(&nbr).zip(&coef) {
-                        *term = Term::new(*c, j);
-                    }
-                }
-                fits
-            })
-            .collect();
+        let fits = match &mut self.neighbours {
+            Neighbours::Narrow(n) => {
+                n.resize((start + rest.len()) * k, 0);
+                fit_rows(
+                    rest,
+                    normals,
+                    sim,
+                    index,
+                    k,
+                    bandwidth,
+                    &mut n[start * k..],
+                    coefficients,
+                )
+            }
+            Neighbours::Wide(n) => {
+                n.resize((start + rest.len()) * k, 0);
+                fit_rows(
+                    rest,
+                    normals,
+                    sim,
+                    index,
+                    k,
+                    bandwidth,
+                    &mut n[start * k..],
+                    coefficients,
+                )
+            }
+        };
         for fit in fits {
             match fit {
                 Fit::Full => self.report.full += 1,
@@ -437,7 +461,11 @@ impl Transfer {
 
     /// Bytes of precomputed data (neighbour indices and coefficients).
     pub fn coefficient_bytes(&self) -> usize {
-        self.terms.len() * std::mem::size_of::<Term>()
+        let indices = match &self.neighbours {
+            Neighbours::Narrow(n) => std::mem::size_of_val(n.as_slice()),
+            Neighbours::Wide(n) => std::mem::size_of_val(n.as_slice()),
+        };
+        indices + std::mem::size_of_val(self.coefficients.as_slice())
     }
 
     /// Checks the displacement count and the output lengths.
@@ -470,6 +498,21 @@ impl Transfer {
         normals: &mut [Vec3],
     ) -> Result<(), TransferError> {
         self.check(displacements, &[positions.len(), normals.len()])?;
+        match &self.neighbours {
+            Neighbours::Narrow(n) => self.apply_rows(n, displacements, positions, normals),
+            Neighbours::Wide(n) => self.apply_rows(n, displacements, positions, normals),
+        }
+        Ok(())
+    }
+
+    /// [`Self::apply`] over neighbour rows of one index width.
+    fn apply_rows<I: NeighbourIndex>(
+        &self,
+        neighbours: &[I],
+        displacements: &[Vec3],
+        positions: &mut [Vec3],
+        normals: &mut [Vec3],
+    ) {
         let k = self.k;
         let disp = simd_displacements(displacements);
         let size = frame_chunk(self.len());
@@ -477,7 +520,7 @@ impl Transfer {
             let first = chunk * size;
             for (row, (p, n)) in pos.iter_mut().zip(nrm.iter_mut()).enumerate() {
                 let i = first + row;
-                let (u, g1, g2) = self.fitted(i, k, &disp);
+                let (u, g1, g2) = self.fitted_row(neighbours, i, k, &disp);
                 *p = self.rest[i] + Vec3::from(u);
                 let (t1, t2) = tangent_frame(self.normals[i]);
                 *n = Vec3::from((Vec3A::from(t1) + g1).cross(Vec3A::from(t2) + g2));
@@ -488,7 +531,6 @@ impl Transfer {
                 *n = unit_or(*n, *rest);
             }
         });
-        Ok(())
     }
 
     /// Deformed dense positions only (no normals: cheaper when a scene does not need them).
@@ -498,20 +540,34 @@ impl Transfer {
         positions: &mut [Vec3],
     ) -> Result<(), TransferError> {
         self.check(displacements, &[positions.len()])?;
+        match &self.neighbours {
+            Neighbours::Narrow(n) => self.apply_positions_rows(n, displacements, positions),
+            Neighbours::Wide(n) => self.apply_positions_rows(n, displacements, positions),
+        }
+        Ok(())
+    }
+
+    /// [`Self::apply_positions`] over neighbour rows of one index width.
+    fn apply_positions_rows<I: NeighbourIndex>(
+        &self,
+        neighbours: &[I],
+        displacements: &[Vec3],
+        positions: &mut [Vec3],
+    ) {
         let k = self.k;
         let disp = simd_displacements(displacements);
         let size = frame_chunk(self.len());
         for_each_chunk(size, positions, None, |chunk, pos, _| {
             for (row, p) in pos.iter_mut().enumerate() {
                 let i = chunk * size + row;
-                let u = self
-                    .row(i, k)
+                let value = &self.coefficients[i * 3 * k..][..k];
+                let u = neighbours[i * k..(i + 1) * k]
                     .iter()
-                    .fold(Vec3A::ZERO, |u, t| u + t.value() * t.displacement(&disp));
+                    .zip(value)
+                    .fold(Vec3A::ZERO, |u, (j, &c)| u + c * disp[j.get()]);
                 *p = self.rest[i] + Vec3::from(u);
             }
         });
-        Ok(())
     }
 
     /// Convenience: [`Self::apply`] into new vectors.
@@ -522,42 +578,98 @@ impl Transfer {
         Ok((positions, normals))
     }
 
-    #[inline]
-    fn row(&self, i: usize, k: usize) -> &[Term] {
-        &self.terms[i * k..(i + 1) * k]
-    }
-
     /// The fitted displacement at dense point `i` and its derivatives along t₁ and t₂.
-    #[inline]
     pub(crate) fn fitted(
         &self,
         i: usize,
         k: usize,
         displacements: &[Vec3A],
     ) -> (Vec3A, Vec3A, Vec3A) {
-        // u, ∂u/∂x̄ and ∂u/∂ȳ: each neighbour adds its displacement times each of its three
-        // coefficients (broadcast from the term by a shuffle). Two sets of sums, over even
-        // and odd neighbours: two short dependency chains instead of one long one.
-        let mut m = [[Vec3A::ZERO; 3]; 2];
-        let add = |m: &mut [Vec3A; 3], term: &Term| {
-            let c = term.coefficients();
-            let d = term.displacement(displacements);
-            m[0] += d * c.xxx();
-            m[1] += d * c.yyy();
-            m[2] += d * c.zzz();
-        };
-        let row = self.row(i, k);
-        let mut pairs = row.chunks_exact(2);
-        for pair in &mut pairs {
-            let [even, odd] = &mut m;
-            add(even, &pair[0]);
-            add(odd, &pair[1]);
+        match &self.neighbours {
+            Neighbours::Narrow(n) => self.fitted_row(n, i, k, displacements),
+            Neighbours::Wide(n) => self.fitted_row(n, i, k, displacements),
         }
-        if let [last] = pairs.remainder() {
-            add(&mut m[0], last);
+    }
+
+    /// [`Self::fitted`] with the neighbour rows given.
+    #[inline(always)]
+    fn fitted_row<I: NeighbourIndex>(
+        &self,
+        neighbours: &[I],
+        i: usize,
+        k: usize,
+        displacements: &[Vec3A],
+    ) -> (Vec3A, Vec3A, Vec3A) {
+        // u, ∂u/∂x̄ and ∂u/∂ȳ: each neighbour adds its displacement times each of its three
+        // coefficients. Two sets of sums, over even and odd neighbours: two short
+        // dependency chains instead of one long one.
+        let nbr = &neighbours[i * k..(i + 1) * k];
+        let row = &self.coefficients[i * 3 * k..(i + 1) * 3 * k];
+        let (c0, rest) = row.split_at(k);
+        let (c1, c2) = rest.split_at(k);
+        let mut m = [[Vec3A::ZERO; 3]; 2];
+        let add = |m: &mut [Vec3A; 3], t: usize| {
+            let d = displacements[nbr[t].get()];
+            m[0] += d * c0[t];
+            m[1] += d * c1[t];
+            m[2] += d * c2[t];
+        };
+        let mut t = 0;
+        while t + 1 < k {
+            let [even, odd] = &mut m;
+            add(even, t);
+            add(odd, t + 1);
+            t += 2;
+        }
+        if t < k {
+            add(&mut m[0], t);
         }
         (m[0][0] + m[1][0], m[0][1] + m[1][1], m[0][2] + m[1][2])
     }
+}
+
+/// Fits the rows of dense points at `rest` (in parallel): their neighbours into `neighbours`
+/// (k a row) and coefficients into `coefficients` (3k a row).
+#[allow(clippy::too_many_arguments)]
+fn fit_rows<I: NeighbourIndex>(
+    rest: &[Vec3],
+    normals: &[Vec3],
+    sim: &[Vec3],
+    index: &KnnIndex,
+    k: usize,
+    bandwidth: f32,
+    neighbours: &mut [I],
+    coefficients: &mut [f32],
+) -> Vec<Fit> {
+    neighbours
+        .par_chunks_mut(CHUNK * k)
+        .zip(coefficients.par_chunks_mut(CHUNK * 3 * k))
+        .enumerate()
+        .flat_map_iter(|(chunk, (nbrs, coefs))| {
+            let mut fits = Vec::with_capacity(nbrs.len() / k);
+            let mut nbr = Vec::with_capacity(k);
+            let mut coef = vec![Vec3A::ZERO; k];
+            for (row, (nbrs, coefs)) in nbrs
+                .chunks_exact_mut(k)
+                .zip(coefs.chunks_exact_mut(3 * k))
+                .enumerate()
+            {
+                let i = chunk * CHUNK + row;
+                nbr.clear();
+                nbr.extend(index.nearest(rest[i], k).iter().map(|nb| nb.index));
+                fits.push(fit_point(
+                    rest[i], normals[i], sim, &nbr, bandwidth, &mut coef,
+                ));
+                let (c0, rest) = coefs.split_at_mut(k);
+                let (c1, c2) = rest.split_at_mut(k);
+                for t in 0..k {
+                    nbrs[t] = I::new(nbr[t]);
+                    (c0[t], c1[t], c2[t]) = (coef[t].x, coef[t].y, coef[t].z);
+                }
+            }
+            fits
+        })
+        .collect()
 }
 
 /// `n` normalised, or `fallback` where `n` is (nearly) zero or not finite.
