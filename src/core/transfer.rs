@@ -386,34 +386,17 @@ impl Transfer {
         self.normals.extend_from_slice(normals);
         self.coefficients.resize((start + rest.len()) * 3 * k, 0.0);
         let coefficients = &mut self.coefficients[start * 3 * k..];
-        let (sim, bandwidth) = (&self.sim_rest, self.config.bandwidth);
+        let job = RowFit {
+            rest,
+            normals,
+            sim: &self.sim_rest,
+            index,
+            k,
+            bandwidth: self.config.bandwidth,
+        };
         let fits = match &mut self.neighbours {
-            Neighbours::Narrow(n) => {
-                n.resize((start + rest.len()) * k, 0);
-                fit_rows(
-                    rest,
-                    normals,
-                    sim,
-                    index,
-                    k,
-                    bandwidth,
-                    &mut n[start * k..],
-                    coefficients,
-                )
-            }
-            Neighbours::Wide(n) => {
-                n.resize((start + rest.len()) * k, 0);
-                fit_rows(
-                    rest,
-                    normals,
-                    sim,
-                    index,
-                    k,
-                    bandwidth,
-                    &mut n[start * k..],
-                    coefficients,
-                )
-            }
+            Neighbours::Narrow(n) => job.fill(n, start, coefficients),
+            Neighbours::Wide(n) => job.fill(n, start, coefficients),
         };
         for fit in fits {
             match fit {
@@ -628,48 +611,56 @@ impl Transfer {
     }
 }
 
-/// Fits the rows of dense points at `rest` (in parallel): their neighbours into `neighbours`
-/// (k a row) and coefficients into `coefficients` (3k a row).
-#[allow(clippy::too_many_arguments)]
-fn fit_rows<I: NeighbourIndex>(
-    rest: &[Vec3],
-    normals: &[Vec3],
-    sim: &[Vec3],
-    index: &KnnIndex,
+/// The fits of new dense points (validated, unit normals) to the simulation points.
+struct RowFit<'a> {
+    rest: &'a [Vec3],
+    normals: &'a [Vec3],
+    sim: &'a [Vec3],
+    index: &'a KnnIndex,
     k: usize,
     bandwidth: f32,
-    neighbours: &mut [I],
-    coefficients: &mut [f32],
-) -> Vec<Fit> {
-    neighbours
-        .par_chunks_mut(CHUNK * k)
-        .zip(coefficients.par_chunks_mut(CHUNK * 3 * k))
-        .enumerate()
-        .flat_map_iter(|(chunk, (nbrs, coefs))| {
-            let mut fits = Vec::with_capacity(nbrs.len() / k);
-            let mut nbr = Vec::with_capacity(k);
-            let mut coef = vec![Vec3A::ZERO; k];
-            for (row, (nbrs, coefs)) in nbrs
-                .chunks_exact_mut(k)
-                .zip(coefs.chunks_exact_mut(3 * k))
-                .enumerate()
-            {
-                let i = chunk * CHUNK + row;
-                nbr.clear();
-                nbr.extend(index.nearest(rest[i], k).iter().map(|nb| nb.index));
-                fits.push(fit_point(
-                    rest[i], normals[i], sim, &nbr, bandwidth, &mut coef,
-                ));
-                let (c0, rest) = coefs.split_at_mut(k);
-                let (c1, c2) = rest.split_at_mut(k);
-                for t in 0..k {
-                    nbrs[t] = I::new(nbr[t]);
-                    (c0[t], c1[t], c2[t]) = (coef[t].x, coef[t].y, coef[t].z);
+}
+
+impl RowFit<'_> {
+    /// Fits the rows (in parallel): the neighbours are appended to `neighbours` from row
+    /// `start` on (k a row), the coefficients written to `coefficients` (3k a row).
+    fn fill<I: NeighbourIndex>(
+        &self,
+        neighbours: &mut Vec<I>,
+        start: usize,
+        coefficients: &mut [f32],
+    ) -> Vec<Fit> {
+        let k = self.k;
+        neighbours.resize((start + self.rest.len()) * k, I::default());
+        neighbours[start * k..]
+            .par_chunks_mut(CHUNK * k)
+            .zip(coefficients.par_chunks_mut(CHUNK * 3 * k))
+            .enumerate()
+            .flat_map_iter(|(chunk, (nbrs, coefs))| {
+                let mut fits = Vec::with_capacity(nbrs.len() / k);
+                let mut nbr = Vec::with_capacity(k);
+                let mut coef = vec![Vec3A::ZERO; k];
+                for (row, (nbrs, coefs)) in nbrs
+                    .chunks_exact_mut(k)
+                    .zip(coefs.chunks_exact_mut(3 * k))
+                    .enumerate()
+                {
+                    let i = chunk * CHUNK + row;
+                    let (p, n) = (self.rest[i], self.normals[i]);
+                    nbr.clear();
+                    nbr.extend(self.index.nearest(p, k).iter().map(|nb| nb.index));
+                    fits.push(fit_point(p, n, self.sim, &nbr, self.bandwidth, &mut coef));
+                    let (c0, rest) = coefs.split_at_mut(k);
+                    let (c1, c2) = rest.split_at_mut(k);
+                    for t in 0..k {
+                        nbrs[t] = I::new(nbr[t]);
+                        (c0[t], c1[t], c2[t]) = (coef[t].x, coef[t].y, coef[t].z);
+                    }
                 }
-            }
-            fits
-        })
-        .collect()
+                fits
+            })
+            .collect()
+    }
 }
 
 /// `n` normalised, or `fallback` where `n` is (nearly) zero or not finite.
