@@ -18,6 +18,22 @@ fn run(args: &[&str]) -> Output {
         .expect("the binary runs")
 }
 
+/// Runs the binary and asserts that it succeeded (showing its error output if not).
+fn run_ok(args: &[&str]) -> Output {
+    let out = run(args);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out
+}
+
+/// Runs the binary, asserts that it succeeded, and parses its JSON report.
+fn run_json(args: &[&str]) -> serde_json::Value {
+    serde_json::from_slice(&run_ok(args).stdout).expect("a JSON report")
+}
+
 fn scratch(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("bps-cli-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
@@ -27,13 +43,7 @@ fn scratch(name: &str) -> PathBuf {
 #[test]
 fn info_json_has_the_documented_keys() {
     let path = asset("sphere926.pwn");
-    let out = run(&["info", path.to_str().unwrap(), "--json"]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let v = run_json(&["info", path.to_str().unwrap(), "--json"]);
     assert_eq!(v["points"], 926);
     assert_eq!(v["has_normals"], true);
     assert_eq!(v["format"], "pwn");
@@ -55,8 +65,7 @@ fn info_json_has_the_documented_keys() {
 #[test]
 fn info_text_and_format_override() {
     let path = asset("sphere926.pwn");
-    let out = run(&["info", path.to_str().unwrap(), "--format", "xyz"]);
-    assert!(out.status.success());
+    let out = run_ok(&["info", path.to_str().unwrap(), "--format", "xyz"]);
     let text = String::from_utf8(out.stdout).unwrap();
     assert!(text.contains("points        926"), "{text}");
     assert!(text.contains("format        xyz"), "{text}");
@@ -85,19 +94,13 @@ fn bad_input_exits_2_and_names_the_file() {
 fn normals_command_writes_an_oriented_ply() {
     let input = asset("half.xyz");
     let output = scratch("half-normals.ply");
-    let out = run(&[
+    let v = run_json(&[
         "normals",
         input.to_str().unwrap(),
         "-o",
         output.to_str().unwrap(),
         "--json",
     ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(v["normals"], "estimated");
     assert_eq!(v["components"], 1);
     let cloud = read_cloud(&output, None).unwrap();
@@ -115,7 +118,7 @@ fn normals_command_writes_an_oriented_ply() {
 fn simplify_writes_simulation_points_and_reports_the_network() {
     let input = asset("sphere926.pwn");
     let output = scratch("sim.ply");
-    let out = run(&[
+    let v = run_json(&[
         "simplify",
         input.to_str().unwrap(),
         "--target",
@@ -126,12 +129,6 @@ fn simplify_writes_simulation_points_and_reports_the_network() {
         output.to_str().unwrap(),
         "--json",
     ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     for key in [
         "input_points",
         "sim_points",
@@ -180,12 +177,7 @@ fn simplify_needs_a_stopping_rule_and_rejects_bad_values() {
         assert!(!out.stderr.is_empty());
     }
     // Both rules together: the threshold on an open surface, normals estimated.
-    let out = run(&["simplify", input, "--target", "40", "--max-diameter", "0.1"]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let out = run_ok(&["simplify", input, "--target", "40", "--max-diameter", "0.1"]);
     let text = String::from_utf8_lossy(&out.stdout);
     assert!(
         text.contains("normals: estimated") && text.contains("1 loop(s)"),
@@ -195,7 +187,7 @@ fn simplify_needs_a_stopping_rule_and_rejects_bad_values() {
 
 #[test]
 fn bench_cloth_grid_reports_speed_and_sag() {
-    let out = run(&[
+    let v = run_json(&[
         "bench",
         "cloth-grid",
         "--size",
@@ -206,12 +198,6 @@ fn bench_cloth_grid_reports_speed_and_sag() {
         "1",
         "--json",
     ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(v["particles"], 144);
     // 12×12: 132 + 120 horizontal, 2·121 diagonal, 132 + 120 vertical.
     assert_eq!(v["springs"], 746);
@@ -244,7 +230,7 @@ fn run_writes_the_deformed_surface_and_reports_it() {
     let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenes/sphere_poke.ron");
     let out_ply = scratch("poked.ply");
     let out_png = scratch("poked.png");
-    let out = run(&[
+    let v = run_json(&[
         "run",
         scene.to_str().unwrap(),
         "-o",
@@ -253,12 +239,6 @@ fn run_writes_the_deformed_surface_and_reports_it() {
         out_png.to_str().unwrap(),
         "--json",
     ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     for key in [
         "dense_points",
         "sim_points",
@@ -315,7 +295,7 @@ fn run_rejects_bad_scenes_with_exit_2() {
 #[test]
 fn generate_and_render() {
     let sphere = scratch("generated_sphere.ply");
-    let out = run(&[
+    run_ok(&[
         "generate",
         "sphere",
         "--points",
@@ -323,12 +303,11 @@ fn generate_and_render() {
         "-o",
         sphere.to_str().unwrap(),
     ]);
-    assert!(out.status.success());
     let cloud = read_cloud(&sphere, None).unwrap();
     assert_eq!(cloud.len(), 500);
     assert!(cloud.has_usable_normals());
     let letter = scratch("generated_b.ply");
-    let out = run(&[
+    run_ok(&[
         "generate",
         "letter-b",
         "--spacing",
@@ -336,11 +315,10 @@ fn generate_and_render() {
         "-o",
         letter.to_str().unwrap(),
     ]);
-    assert!(out.status.success());
     assert!(read_cloud(&letter, None).unwrap().len() > 300);
 
     let picture = scratch("two.png");
-    let out = run(&[
+    run_ok(&[
         "render",
         sphere.to_str().unwrap(),
         letter.to_str().unwrap(),
@@ -351,11 +329,6 @@ fn generate_and_render() {
         "--height",
         "200",
     ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
     assert!(std::fs::read(&picture).unwrap().starts_with(b"\x89PNG"));
 
     for args in [
@@ -378,15 +351,9 @@ fn generate_and_render() {
 
 #[test]
 fn bench_transfer_reports_speed_and_error() {
-    let out = run(&[
+    let v = run_json(&[
         "bench", "transfer", "--points", "3000", "--sim", "300", "--repeat", "2", "--json",
     ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(v["dense_points"], 3000);
     assert_eq!(v["sim_points"], 300);
     assert!(v["apply_ms"].as_f64().unwrap() > 0.0);
