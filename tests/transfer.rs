@@ -7,7 +7,8 @@ use bevy_point_springs::core::io::read_cloud;
 use bevy_point_springs::core::shapes;
 use bevy_point_springs::core::simplify::{SimplifyConfig, simplify};
 use bevy_point_springs::core::transfer::{
-    NARROW_INDEX_LIMIT, Transfer, TransferConfig, TransferError, literal_transfer,
+    MAX_SIMULATION_POINTS, NARROW_INDEX_LIMIT, Transfer, TransferConfig, TransferError,
+    literal_transfer,
 };
 use glam::{Mat3, Quat, Vec3};
 
@@ -228,6 +229,12 @@ fn bad_input_gets_typed_errors() {
     assert!(matches!(
         t.apply_positions(&[Vec3::ZERO; 2], &mut short),
         Err(TransferError::OutputLength { .. })
+    ));
+    // Too many simulation points is refused before anything is built for them.
+    let crowd = vec![Vec3::ZERO; MAX_SIMULATION_POINTS + 1];
+    assert!(matches!(
+        Transfer::new(&p, &n, &crowd, c),
+        Err(TransferError::TooManySimulationPoints(count)) if count == MAX_SIMULATION_POINTS + 1
     ));
 }
 
