@@ -9,8 +9,20 @@
 //! The fitted value at p, u(p) = a₀ = e₀ᵀA⁻¹PᵀWu, is a fixed linear combination Σⱼ cⱼuⱼ of
 //! the neighbours' displacements, and so are the tangent derivatives a₁ = ∂u/∂x̄ and
 //! a₂ = ∂u/∂ȳ. Those coefficients are computed once ([`Transfer::new`], in parallel); each
-//! frame is then a sparse matrix–vector product over the displacements
-//! ([`Transfer::apply`], in parallel for large clouds).
+//! frame is then a sparse matrix–vector product ([`Transfer::apply`], in parallel for large
+//! clouds).
+//!
+//! **What a frame reads.** Every fit reproduces constants, so its value coefficients sum to 1
+//! and its slope coefficients to 0: a row stores the coefficients of the other neighbours'
+//! offsets from one of them, its anchor, and not the anchor's own. And where the fit
+//! reproduces the rest surface itself (the full fit does, as the position is an affine
+//! function of position; so does a plane fit on flat ground), the same sums over the
+//! simulation points' *current positions* give the deformed position and the deformed
+//! tangents t₁ + a₁, t₂ + a₂ directly: a frame then reads neither the dense point's rest
+//! position nor its normal, only 10 indices and 27 coefficients (k = 10). The few rows that
+//! do not reproduce the rest surface to [`REST_TOLERANCE`] (plane fits on curved ground,
+//! ridge fits) are listed and computed the long way, from the displacements, the rest
+//! position and the rest frame.
 //!
 //! **The normal coordinate.** The paper fits u = a₀ + a₁x̄ + a₂ȳ on the plane. On a curved
 //! surface the neighbours sit off the plane by z̄ ≈ r²/2R, and an affine motion of them
@@ -159,6 +171,12 @@ fn for_each_chunk(
     }
 }
 
+/// How closely a row's fit must give back the rest surface from the simulation points'
+/// rest positions (the position relative to the neighbourhood's reach, the unit tangents
+/// absolutely) for a frame to use the simulation points' current positions directly.
+/// Coefficients rounded to `f32` reproduce it to about 10⁻⁷.
+pub const REST_TOLERANCE: f64 = 1.0e-6;
+
 /// Below this length a deformed normal is taken as undefined (a fully crushed neighbourhood)
 /// and the rest normal is kept.
 const MIN_NORMAL_LENGTH: f32 = 1.0e-12;
@@ -239,6 +257,10 @@ pub struct FitReport {
     pub plane: usize,
     /// Ridge-damped fits (collinear or too few neighbours).
     pub regularised: usize,
+    /// Rows whose fit does not give back the rest surface itself (plane fits on curved
+    /// ground, ridge fits, a single neighbour); a frame computes them the longer way, from
+    /// the displacements and the rest frame.
+    pub residual: usize,
 }
 
 /// Kinds of fit.
@@ -296,17 +318,24 @@ pub struct Transfer {
     /// Neighbours per dense point (k, or all simulation points when there are fewer).
     pub(crate) k: usize,
     pub(crate) rest: Vec<Vec3>,
-    /// Unit rest normals; each frame derives the tangent frame from them ([`tangent_frame`]:
-    /// a few multiplications are cheaper than reading 32 more bytes per point).
+    /// Unit rest normals. A frame reads them (and `rest`) only for the residual rows, which
+    /// derive their tangent frame from them ([`tangent_frame`]), and where a deformed
+    /// normal is undefined.
     pub(crate) normals: Vec<Vec3>,
     pub(crate) sim_rest: Vec<Vec3>,
-    /// Row i: the k simulation points dense point i follows.
+    /// Row i: the k simulation points dense point i follows, the first of them its anchor.
     pub(crate) neighbours: Neighbours,
-    /// Row i (3k numbers): the coefficients of those neighbours' displacements in the fitted
-    /// value, then in the slope along t₁, then along t₂. Each frame streams every row, so
-    /// their size is the per-frame cost; three separate runs let each coefficient be
-    /// broadcast straight from memory.
+    /// Row i (3(k − 1) numbers): the coefficients of the other neighbours' offsets from the
+    /// anchor in the fitted value, then in the slope along t₁, then along t₂ (see
+    /// [`Transfer::row_sums`]). Each frame streams every row, so their size is the
+    /// per-frame cost; three separate runs let each coefficient be broadcast straight from
+    /// memory.
     pub(crate) coefficients: Vec<f32>,
+    /// The rows (ascending) whose fit does not reproduce the rest surface to
+    /// [`REST_TOLERANCE`] (plane fits on curved ground, ridge fits, a single neighbour):
+    /// a frame computes them from the displacements, the rest position and the rest frame,
+    /// instead of from the simulation points' positions alone.
+    pub(crate) residual_rows: Vec<usize>,
     pub(crate) report: FitReport,
 }
 
@@ -372,6 +401,7 @@ impl Transfer {
                 Neighbours::Wide(Vec::new())
             },
             coefficients: Vec::new(),
+            residual_rows: Vec::new(),
             report: FitReport::default(),
         };
         let normals: Vec<Vec3> = normals.iter().map(|n| n.normalize()).collect();
@@ -384,8 +414,9 @@ impl Transfer {
         let (k, start) = (self.k, self.rest.len());
         self.rest.extend_from_slice(rest);
         self.normals.extend_from_slice(normals);
-        self.coefficients.resize((start + rest.len()) * 3 * k, 0.0);
-        let coefficients = &mut self.coefficients[start * 3 * k..];
+        let stride = row_stride(k);
+        self.coefficients.resize((start + rest.len()) * stride, 0.0);
+        let coefficients = &mut self.coefficients[start * stride..];
         let job = RowFit {
             rest,
             normals,
@@ -398,11 +429,15 @@ impl Transfer {
             Neighbours::Narrow(n) => job.fill(n, start, coefficients),
             Neighbours::Wide(n) => job.fill(n, start, coefficients),
         };
-        for fit in fits {
+        for (row, (fit, reproduces_rest)) in fits.into_iter().enumerate() {
             match fit {
                 Fit::Full => self.report.full += 1,
                 Fit::Plane => self.report.plane += 1,
                 Fit::Regularised => self.report.regularised += 1,
+            }
+            if !reproduces_rest {
+                self.residual_rows.push(start + row);
+                self.report.residual += 1;
             }
         }
     }
@@ -448,7 +483,9 @@ impl Transfer {
             Neighbours::Narrow(n) => std::mem::size_of_val(n.as_slice()),
             Neighbours::Wide(n) => std::mem::size_of_val(n.as_slice()),
         };
-        indices + std::mem::size_of_val(self.coefficients.as_slice())
+        indices
+            + std::mem::size_of_val(self.coefficients.as_slice())
+            + std::mem::size_of_val(self.residual_rows.as_slice())
     }
 
     /// Checks the displacement count and the output lengths.
@@ -481,39 +518,8 @@ impl Transfer {
         normals: &mut [Vec3],
     ) -> Result<(), TransferError> {
         self.check(displacements, &[positions.len(), normals.len()])?;
-        match &self.neighbours {
-            Neighbours::Narrow(n) => self.apply_rows(n, displacements, positions, normals),
-            Neighbours::Wide(n) => self.apply_rows(n, displacements, positions, normals),
-        }
+        self.frame(displacements, positions, Some(normals));
         Ok(())
-    }
-
-    /// [`Self::apply`] over neighbour rows of one index width.
-    fn apply_rows<I: NeighbourIndex>(
-        &self,
-        neighbours: &[I],
-        displacements: &[Vec3],
-        positions: &mut [Vec3],
-        normals: &mut [Vec3],
-    ) {
-        let k = self.k;
-        let disp = simd_displacements(displacements);
-        let size = frame_chunk(self.len());
-        for_each_chunk(size, positions, Some(normals), |chunk, pos, nrm| {
-            let first = chunk * size;
-            for (row, (p, n)) in pos.iter_mut().zip(nrm.iter_mut()).enumerate() {
-                let i = first + row;
-                let (u, g1, g2) = self.fitted_row(neighbours, i, k, &disp);
-                *p = self.rest[i] + Vec3::from(u);
-                let (t1, t2) = tangent_frame(self.normals[i]);
-                *n = Vec3::from((Vec3A::from(t1) + g1).cross(Vec3A::from(t2) + g2));
-            }
-            // Normalised in a second, short loop: the square roots and divisions of many
-            // points then overlap instead of each waiting for its own.
-            for (n, rest) in nrm.iter_mut().zip(&self.normals[first..]) {
-                *n = unit_or(*n, *rest);
-            }
-        });
     }
 
     /// Deformed dense positions only (no normals: cheaper when a scene does not need them).
@@ -523,32 +529,70 @@ impl Transfer {
         positions: &mut [Vec3],
     ) -> Result<(), TransferError> {
         self.check(displacements, &[positions.len()])?;
-        match &self.neighbours {
-            Neighbours::Narrow(n) => self.apply_positions_rows(n, displacements, positions),
-            Neighbours::Wide(n) => self.apply_positions_rows(n, displacements, positions),
-        }
+        self.frame(displacements, positions, None);
         Ok(())
     }
 
-    /// [`Self::apply_positions`] over neighbour rows of one index width.
-    fn apply_positions_rows<I: NeighbourIndex>(
+    /// A frame (lengths checked): [`Self::frame_rows`] for the index width, compiled for the
+    /// default k (and so fully unrolled) where that is the k.
+    fn frame(&self, displacements: &[Vec3], positions: &mut [Vec3], normals: Option<&mut [Vec3]>) {
+        const D: usize = DEFAULT_TRANSFER_K;
+        match (&self.neighbours, self.k == D) {
+            (Neighbours::Narrow(n), true) => {
+                self.frame_rows::<_, D>(n, displacements, positions, normals);
+            }
+            (Neighbours::Narrow(n), false) => {
+                self.frame_rows::<_, 0>(n, displacements, positions, normals);
+            }
+            (Neighbours::Wide(n), true) => {
+                self.frame_rows::<_, D>(n, displacements, positions, normals);
+            }
+            (Neighbours::Wide(n), false) => {
+                self.frame_rows::<_, 0>(n, displacements, positions, normals);
+            }
+        }
+    }
+
+    /// A frame over neighbour rows of one index width; `K` is k, or 0 for any.
+    fn frame_rows<I: NeighbourIndex, const K: usize>(
         &self,
         neighbours: &[I],
         displacements: &[Vec3],
         positions: &mut [Vec3],
+        normals: Option<&mut [Vec3]>,
     ) {
-        let k = self.k;
-        let disp = simd_displacements(displacements);
+        let current = simd_positions(&self.sim_rest, displacements);
+        let disp = (!self.residual_rows.is_empty()).then(|| simd_displacements(displacements));
         let size = frame_chunk(self.len());
-        for_each_chunk(size, positions, None, |chunk, pos, _| {
-            for (row, p) in pos.iter_mut().enumerate() {
-                let i = chunk * size + row;
-                let value = &self.coefficients[i * 3 * k..][..k];
-                let u = neighbours[i * k..(i + 1) * k]
-                    .iter()
-                    .zip(value)
-                    .fold(Vec3A::ZERO, |u, (j, &c)| u + c * disp[j.get()]);
-                *p = self.rest[i] + Vec3::from(u);
+        for_each_chunk(size, positions, normals, |chunk, pos, nrm| {
+            // A constant in the body itself (not captured), so that the loops unroll.
+            let k = if K == 0 { self.k } else { K };
+            let first = chunk * size;
+            // Where the fit reproduces the rest surface, the fitted position and tangents
+            // of the simulation points' current positions are the deformed ones.
+            pulp::Arch::new().dispatch(FrameRows::<I, K> {
+                transfer: self,
+                neighbours,
+                current: &current,
+                first,
+                positions: &mut *pos,
+                normals: &mut *nrm,
+            });
+            if let Some(disp) = &disp {
+                for &i in self.residual_rows_in(first, pos.len()) {
+                    let (u, g1, g2) = self.row_sums(neighbours, i, k, disp);
+                    pos[i - first] = self.rest[i] + Vec3::from(u);
+                    if let Some(n) = nrm.get_mut(i - first) {
+                        let (t1, t2) = tangent_frame(self.normals[i]);
+                        let (t1, t2) = (Vec3A::from(t1) + g1, Vec3A::from(t2) + g2);
+                        *n = Vec3::from(t1.cross(t2));
+                    }
+                }
+            }
+            // Normalised in a second, short loop: the square roots and divisions of many
+            // points then overlap instead of each waiting for its own.
+            for (row, n) in nrm.iter_mut().enumerate() {
+                *n = unit_or(*n, || self.normals[first + row]);
             }
         });
     }
@@ -561,6 +605,14 @@ impl Transfer {
         Ok((positions, normals))
     }
 
+    /// The residual rows among the `len` rows from `first` on.
+    fn residual_rows_in(&self, first: usize, len: usize) -> &[usize] {
+        let rows = &self.residual_rows;
+        let from = rows.partition_point(|&i| i < first);
+        let to = rows.partition_point(|&i| i < first + len);
+        &rows[from..to]
+    }
+
     /// The fitted displacement at dense point `i` and its derivatives along t₁ and t₂.
     pub(crate) fn fitted(
         &self,
@@ -569,46 +621,114 @@ impl Transfer {
         displacements: &[Vec3A],
     ) -> (Vec3A, Vec3A, Vec3A) {
         match &self.neighbours {
-            Neighbours::Narrow(n) => self.fitted_row(n, i, k, displacements),
-            Neighbours::Wide(n) => self.fitted_row(n, i, k, displacements),
+            Neighbours::Narrow(n) => self.row_sums(n, i, k, displacements),
+            Neighbours::Wide(n) => self.row_sums(n, i, k, displacements),
         }
     }
 
-    /// [`Self::fitted`] with the neighbour rows given.
+    /// Row `i`'s fit of `values` (one per simulation point): its value at the dense point
+    /// and its slopes along t₁ and t₂. With a the anchor's value and eⱼ = vⱼ − a the other
+    /// neighbours' offsets from it, the value is a + Σ c⁰ⱼeⱼ and the slopes Σ c¹ⱼeⱼ and
+    /// Σ c²ⱼeⱼ: every fit reproduces constants (its coefficients sum to 1 in the value and
+    /// to 0 in the slopes), so the anchor's own coefficient need not be stored, and the
+    /// sums run over small offsets rather than large absolute values.
     #[inline(always)]
-    fn fitted_row<I: NeighbourIndex>(
+    fn row_sums<I: NeighbourIndex>(
         &self,
         neighbours: &[I],
         i: usize,
         k: usize,
-        displacements: &[Vec3A],
+        values: &[Vec3A],
     ) -> (Vec3A, Vec3A, Vec3A) {
-        // u, ∂u/∂x̄ and ∂u/∂ȳ: each neighbour adds its displacement times each of its three
-        // coefficients. Two sets of sums, over even and odd neighbours: two short
-        // dependency chains instead of one long one.
-        let nbr = &neighbours[i * k..(i + 1) * k];
-        let row = &self.coefficients[i * 3 * k..(i + 1) * 3 * k];
-        let (c0, rest) = row.split_at(k);
-        let (c1, c2) = rest.split_at(k);
-        let mut m = [[Vec3A::ZERO; 3]; 2];
-        let add = |m: &mut [Vec3A; 3], t: usize| {
-            let d = displacements[nbr[t].get()];
-            m[0] += d * c0[t];
-            m[1] += d * c1[t];
-            m[2] += d * c2[t];
+        // Two sets of sums, over even and odd neighbours: two short dependency chains
+        // instead of one long one.
+        let (anchor, others) = neighbours[i * k..(i + 1) * k].split_at(1);
+        let m = k - 1;
+        let row = &self.coefficients[i * row_stride(k)..][..3 * m];
+        let (c0, rest) = row.split_at(m);
+        let (c1, c2) = rest.split_at(m);
+        let a = values[anchor[0].get()];
+        let mut sums = [[Vec3A::ZERO; 3]; 2];
+        let add = |s: &mut [Vec3A; 3], t: usize| {
+            let e = values[others[t].get()] - a;
+            s[0] += e * c0[t];
+            s[1] += e * c1[t];
+            s[2] += e * c2[t];
         };
         let mut t = 0;
-        while t + 1 < k {
-            let [even, odd] = &mut m;
+        while t + 1 < m {
+            let [even, odd] = &mut sums;
             add(even, t);
             add(odd, t + 1);
             t += 2;
         }
-        if t < k {
-            add(&mut m[0], t);
+        if t < m {
+            add(&mut sums[0], t);
         }
-        (m[0][0] + m[1][0], m[0][1] + m[1][1], m[0][2] + m[1][2])
+        let [even, odd] = sums;
+        (a + (even[0] + odd[0]), even[1] + odd[1], even[2] + odd[2])
     }
+
+    /// [`Self::row_sums`]' value alone.
+    #[inline(always)]
+    fn row_value<I: NeighbourIndex>(
+        &self,
+        neighbours: &[I],
+        i: usize,
+        k: usize,
+        values: &[Vec3A],
+    ) -> Vec3A {
+        let (anchor, others) = neighbours[i * k..(i + 1) * k].split_at(1);
+        let c0 = &self.coefficients[i * row_stride(k)..][..k - 1];
+        let a = values[anchor[0].get()];
+        a + others
+            .iter()
+            .zip(c0)
+            .fold(Vec3A::ZERO, |s, (j, &c)| s + (values[j.get()] - a) * c)
+    }
+}
+
+/// A chunk of a frame's rows computed from the simulation points' current positions
+/// (positions and unnormalised normals, or positions alone when `normals` is empty), handed
+/// to [`pulp`] so that the loop is compiled for, and runs with, the widest instruction set
+/// the processor has (AVX2 broadcasts each coefficient straight from memory, and its
+/// three-operand forms save the copies SSE2 needs). `K` is k, or 0 for any.
+struct FrameRows<'a, I, const K: usize> {
+    transfer: &'a Transfer,
+    neighbours: &'a [I],
+    current: &'a [Vec3A],
+    first: usize,
+    positions: &'a mut [Vec3],
+    normals: &'a mut [Vec3],
+}
+
+impl<I: NeighbourIndex, const K: usize> pulp::WithSimd for FrameRows<'_, I, K> {
+    type Output = ();
+
+    #[inline(always)]
+    fn with_simd<S: pulp::Simd>(self, _simd: S) {
+        let t = self.transfer;
+        let k = if K == 0 { t.k } else { K };
+        let (neighbours, current, first) = (self.neighbours, self.current, self.first);
+        if self.normals.is_empty() {
+            for (row, p) in self.positions.iter_mut().enumerate() {
+                *p = Vec3::from(t.row_value(neighbours, first + row, k, current));
+            }
+        } else {
+            let rows = self.positions.iter_mut().zip(self.normals.iter_mut());
+            for (row, (p, n)) in rows.enumerate() {
+                let (v, s1, s2) = t.row_sums(neighbours, first + row, k, current);
+                *p = Vec3::from(v);
+                *n = Vec3::from(s1.cross(s2));
+            }
+        }
+    }
+}
+
+/// Numbers stored per row for k neighbours: three coefficients for each but the anchor (one
+/// unused number when k = 1, so that rows never have zero length).
+pub(crate) fn row_stride(k: usize) -> usize {
+    (3 * (k - 1)).max(1)
 }
 
 /// The fits of new dense points (validated, unit normals) to the simulation points.
@@ -623,18 +743,19 @@ struct RowFit<'a> {
 
 impl RowFit<'_> {
     /// Fits the rows (in parallel): the neighbours are appended to `neighbours` from row
-    /// `start` on (k a row), the coefficients written to `coefficients` (3k a row).
+    /// `start` on (k a row), the coefficients written to `coefficients` ([`row_stride`] a
+    /// row). Per row: its kind of fit, and whether it reproduces the rest surface.
     fn fill<I: NeighbourIndex>(
         &self,
         neighbours: &mut Vec<I>,
         start: usize,
         coefficients: &mut [f32],
-    ) -> Vec<Fit> {
-        let k = self.k;
+    ) -> Vec<(Fit, bool)> {
+        let (k, stride) = (self.k, row_stride(self.k));
         neighbours.resize((start + self.rest.len()) * k, I::default());
         neighbours[start * k..]
             .par_chunks_mut(CHUNK * k)
-            .zip(coefficients.par_chunks_mut(CHUNK * 3 * k))
+            .zip(coefficients.par_chunks_mut(CHUNK * stride))
             .enumerate()
             .flat_map_iter(|(chunk, (nbrs, coefs))| {
                 let mut fits = Vec::with_capacity(nbrs.len() / k);
@@ -642,20 +763,25 @@ impl RowFit<'_> {
                 let mut coef = vec![Vec3A::ZERO; k];
                 for (row, (nbrs, coefs)) in nbrs
                     .chunks_exact_mut(k)
-                    .zip(coefs.chunks_exact_mut(3 * k))
+                    .zip(coefs.chunks_exact_mut(stride))
                     .enumerate()
                 {
                     let i = chunk * CHUNK + row;
                     let (p, n) = (self.rest[i], self.normals[i]);
                     nbr.clear();
                     nbr.extend(self.index.nearest(p, k).iter().map(|nb| nb.index));
-                    fits.push(fit_point(p, n, self.sim, &nbr, self.bandwidth, &mut coef));
-                    let (c0, rest) = coefs.split_at_mut(k);
-                    let (c1, c2) = rest.split_at_mut(k);
+                    let fit = fit_point(p, n, self.sim, &nbr, self.bandwidth, &mut coef);
+                    let m = k - 1;
+                    let (c0, rest) = coefs.split_at_mut(m);
+                    let (c1, c2) = rest.split_at_mut(m);
                     for t in 0..k {
                         nbrs[t] = I::new(nbr[t]);
-                        (c0[t], c1[t], c2[t]) = (coef[t].x, coef[t].y, coef[t].z);
                     }
+                    for t in 0..m {
+                        let c = coef[t + 1];
+                        (c0[t], c1[t], c2[t]) = (c.x, c.y, c.z);
+                    }
+                    fits.push((fit, reproduces_rest(p, n, self.sim, &nbr, &coef)));
                 }
                 fits
             })
@@ -663,15 +789,49 @@ impl RowFit<'_> {
     }
 }
 
-/// `n` normalised, or `fallback` where `n` is (nearly) zero or not finite.
+/// Whether the stored fit of dense point `p` (unit normal `n`) to its neighbours `nbr`
+/// (coefficients `coef`, the anchor's unused) gives back, from the neighbours' rest
+/// positions, `p` itself to within [`REST_TOLERANCE`] times the neighbourhood's reach and
+/// the tangents t₁, t₂ to within [`REST_TOLERANCE`]. The full fit does, by construction
+/// (it reproduces every affine function of position, and the position is one), up to the
+/// rounding of its coefficients; so does a plane fit on flat ground.
+fn reproduces_rest(p: Vec3, n: Vec3, sim: &[Vec3], nbr: &[u32], coef: &[Vec3A]) -> bool {
+    let (t1, t2) = tangent_frame(n);
+    let p = p.as_dvec3();
+    let anchor = sim[nbr[0] as usize].as_dvec3();
+    let (mut value, mut s1, mut s2) = (anchor, DVec3::ZERO, DVec3::ZERO);
+    let mut reach = anchor.distance(p);
+    for (&j, c) in nbr.iter().zip(coef).skip(1) {
+        let x = sim[j as usize].as_dvec3();
+        let e = x - anchor;
+        value += f64::from(c.x) * e;
+        s1 += f64::from(c.y) * e;
+        s2 += f64::from(c.z) * e;
+        reach = reach.max(x.distance(p));
+    }
+    value.distance(p) <= REST_TOLERANCE * reach
+        && s1.distance(t1.as_dvec3()) <= REST_TOLERANCE
+        && s2.distance(t2.as_dvec3()) <= REST_TOLERANCE
+}
+
+/// `n` normalised, or `fallback()` where `n` is (nearly) zero or not finite.
 #[inline]
-fn unit_or(n: Vec3, fallback: Vec3) -> Vec3 {
+fn unit_or(n: Vec3, fallback: impl FnOnce() -> Vec3) -> Vec3 {
     let len = n.length();
     if len > MIN_NORMAL_LENGTH && len.is_finite() {
         n * len.recip()
     } else {
-        fallback
+        fallback()
     }
+}
+
+/// The simulation points' current positions (rest plus displacement) as 16-byte SIMD
+/// vectors (the per-frame loops gather them).
+fn simd_positions(rest: &[Vec3], displacements: &[Vec3]) -> Vec<Vec3A> {
+    rest.iter()
+        .zip(displacements)
+        .map(|(&x, &d)| Vec3A::from(x + d))
+        .collect()
 }
 
 /// Displacements as 16-byte SIMD vectors (the per-frame loops gather them).
@@ -933,6 +1093,80 @@ mod tests {
             size: 2,
         };
         assert!(singular.cholesky(1e-8).is_none());
+    }
+
+    /// Every row's output the long way: rest position plus fitted displacement, normal from
+    /// the rest frame plus the fitted slopes.
+    fn long_way(t: &Transfer, displacements: &[Vec3]) -> (Vec<Vec3>, Vec<Vec3>) {
+        let d = simd_displacements(displacements);
+        (0..t.len())
+            .map(|i| {
+                let (u, g1, g2) = t.fitted(i, t.k, &d);
+                let (t1, t2) = tangent_frame(t.normals[i]);
+                let n = (Vec3A::from(t1) + g1).cross(Vec3A::from(t2) + g2);
+                (t.rest[i] + Vec3::from(u), Vec3::from(n).normalize())
+            })
+            .unzip()
+    }
+
+    #[test]
+    fn rows_from_current_positions_match_the_long_way() {
+        // A frame computes most rows from the simulation points' current positions alone,
+        // and the rows whose fit misses the rest surface (here: plane fits on a sphere,
+        // with k = 4, and ridge fits to collinear points) from the displacements. Both must give what the long way gives, for
+        // a motion that is neither rigid nor affine, away from the origin, with the
+        // default k (unrolled) and another (not).
+        let offset = Vec3::new(10.0, -3.0, 2.0);
+        let moved = |cloud: crate::core::cloud::PointCloud| -> (Vec<Vec3>, Vec<Vec3>) {
+            let p = cloud.positions().iter().map(|&p| p + offset).collect();
+            (p, cloud.normals().unwrap().to_vec())
+        };
+        let (dense, normals) = moved(crate::core::shapes::fibonacci_sphere(3000, 1.0));
+        let (sim, _) = moved(crate::core::shapes::fibonacci_sphere(300, 1.0));
+        let (sheet, sheet_normals) = moved(crate::core::shapes::square_sheet(2.0, 0.05));
+        let (sheet_sim, _) = moved(crate::core::shapes::square_sheet(2.0, 0.2));
+        let wave = |x: Vec3| {
+            let q = x - offset;
+            Vec3::new((2.0 * q.y).sin(), q.x * q.z, (3.0 * q.x).cos() * q.y) * 0.1
+        };
+        // Collinear simulation points: ridge fits.
+        let line: Vec<Vec3> = (0..20)
+            .map(|i| offset + Vec3::new(i as f32 * 0.1 - 1.0, 0.03, 0.0))
+            .collect();
+        let (mut residual_seen, mut regularised_seen) = (false, false);
+        for (p, n, s, k) in [
+            (&dense, &normals, &sim, 4),
+            (&dense, &normals, &sim, DEFAULT_TRANSFER_K),
+            (&sheet, &sheet_normals, &sheet_sim, DEFAULT_TRANSFER_K),
+            (&sheet, &sheet_normals, &line, DEFAULT_TRANSFER_K),
+        ] {
+            let config = TransferConfig {
+                k,
+                ..TransferConfig::default()
+            };
+            let t = Transfer::new(p, n, s, config).unwrap();
+            let report = t.report();
+            assert_eq!(report.residual, t.residual_rows.len());
+            residual_seen |= report.residual > 0;
+            regularised_seen |= report.regularised > 0;
+            // At rest, the rest surface comes back.
+            let (rest_p, rest_n) = t.deform(&vec![Vec3::ZERO; s.len()]).unwrap();
+            for i in 0..p.len() {
+                assert!(rest_p[i].distance(p[i]) < 2e-6, "k {k}, {i}");
+                assert!(rest_n[i].distance(n[i]) < 1e-5, "k {k}, {i}");
+            }
+            let disp: Vec<Vec3> = s.iter().map(|&x| wave(x)).collect();
+            let (pos, nrm) = t.deform(&disp).unwrap();
+            let mut positions_only = vec![Vec3::ZERO; p.len()];
+            t.apply_positions(&disp, &mut positions_only).unwrap();
+            let (long_p, long_n) = long_way(&t, &disp);
+            for i in 0..p.len() {
+                assert!(pos[i].distance(long_p[i]) < 2e-6, "k {k}, {i}");
+                assert!(positions_only[i].distance(long_p[i]) < 2e-6, "k {k}, {i}");
+                assert!(nrm[i].distance(long_n[i]) < 1e-5, "k {k}, {i}");
+            }
+        }
+        assert!(residual_seen && regularised_seen);
     }
 
     #[test]

@@ -141,6 +141,9 @@ struct TransferBenchReport {
     fits_full: usize,
     fits_plane: usize,
     fits_regularised: usize,
+    /// Rows whose fit does not give back the rest surface: a frame computes them from the
+    /// displacements and the rest frame.
+    fits_residual: usize,
     apply_ms: f64,
     apply_positions_ms: f64,
     errors: Errors,
@@ -283,6 +286,7 @@ fn transfer(b: &TransferBench, json: bool) -> Result<(), Failure> {
         fits_full: fits.full,
         fits_plane: fits.plane,
         fits_regularised: fits.regularised,
+        fits_residual: fits.residual,
         apply_ms,
         apply_positions_ms,
         errors: errors_gradient,
@@ -300,20 +304,26 @@ fn transfer(b: &TransferBench, json: bool) -> Result<(), Failure> {
         r.dense_points, r.sim_points, r.sim_source, r.k, r.bandwidth, r.threads
     );
     println!(
-        "precompute    {:.1} ms, {:.1} MiB of coefficients (fits: {} full, {} plane, {} regularised)",
-        r.precompute_ms, r.coefficient_mib, r.fits_full, r.fits_plane, r.fits_regularised
+        "precompute    {:.1} ms, {:.1} MiB of coefficients (fits: {} full, {} plane, {} regularised; {} rows not reproducing the rest surface)",
+        r.precompute_ms,
+        r.coefficient_mib,
+        r.fits_full,
+        r.fits_plane,
+        r.fits_regularised,
+        r.fits_residual
     );
-    let show = |name: &str, ms: f64, e: &Errors| {
+    let show = |name: &str, ms: Option<f64>, e: &Errors| {
+        let ms = ms.map_or_else(|| "—".to_owned(), |ms| format!("{ms:.3}"));
         println!(
-            "{name:<13} {ms:>9.3} ms   position error max {:.2e} mean {:.2e}   normal error max {:.3}° mean {:.4}°",
+            "{name:<13} {ms:>9} ms   position error max {:.2e} mean {:.2e}   normal error max {:.3}° mean {:.4}°",
             e.position_max, e.position_mean, e.normal_max_deg, e.normal_mean_deg
         );
     };
-    show("precomputed", r.apply_ms, &r.errors);
+    show("precomputed", Some(r.apply_ms), &r.errors);
     println!("  positions only {:.3} ms", r.apply_positions_ms);
-    show("  +PCA normals", f64::NAN, &r.errors_pca_normals);
+    show("  +PCA normals", None, &r.errors_pca_normals);
     if let (Some(ms), Some(e), Some(x)) = (r.literal_ms, &r.literal_errors, r.speedup) {
-        show("literal", ms, e);
+        show("literal", Some(ms), e);
         println!("speedup       {x:.1}× (literal / precomputed, positions and normals)");
     }
     Ok(())
