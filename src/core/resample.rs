@@ -160,7 +160,6 @@ impl Resampler {
         let mut report = ResampleReport::default();
         let budget = (transfer.len() as f64 * f64::from(config.max_new_per_point)) as usize;
         let sim_index = KnnIndex::build(&transfer.sim_rest);
-        let k = transfer.k;
         for _ in 0..config.max_passes {
             // Candidates from every over-stretched point, in point order: the midpoint to
             // its neighbour on either side along the stretch (none past a boundary).
@@ -170,7 +169,7 @@ impl Resampler {
             let splits: Vec<Option<Vec3>> = (0..transfer.len())
                 .into_par_iter()
                 .map(|i| {
-                    let (_, g1, g2) = transfer.fitted(i, k, displacements);
+                    let (_, g1, g2) = transfer.fitted(i, displacements);
                     let (sigma, dir) = stretch(transfer.normals[i], g1, g2);
                     let s = self.spacing[i];
                     (s > 0.0 && sigma * s > config.factor * self.sampled[i]).then_some(dir)

@@ -336,6 +336,7 @@ pub struct Transfer {
     /// a frame computes them from the displacements, the rest position and the rest frame,
     /// instead of from the simulation points' positions alone.
     pub(crate) residual_rows: Vec<usize>,
+    /// The kinds of fit; its `residual` count is `residual_rows`' length.
     pub(crate) report: FitReport,
 }
 
@@ -437,7 +438,6 @@ impl Transfer {
             }
             if !reproduces_rest {
                 self.residual_rows.push(start + row);
-                self.report.residual += 1;
             }
         }
     }
@@ -469,7 +469,10 @@ impl Transfer {
 
     /// Which fit the dense points got.
     pub fn report(&self) -> FitReport {
-        self.report
+        FitReport {
+            residual: self.residual_rows.len(),
+            ..self.report
+        }
     }
 
     /// The settings.
@@ -614,15 +617,10 @@ impl Transfer {
     }
 
     /// The fitted displacement at dense point `i` and its derivatives along t₁ and t₂.
-    pub(crate) fn fitted(
-        &self,
-        i: usize,
-        k: usize,
-        displacements: &[Vec3A],
-    ) -> (Vec3A, Vec3A, Vec3A) {
+    pub(crate) fn fitted(&self, i: usize, displacements: &[Vec3A]) -> (Vec3A, Vec3A, Vec3A) {
         match &self.neighbours {
-            Neighbours::Narrow(n) => self.row_sums(n, i, k, displacements),
-            Neighbours::Wide(n) => self.row_sums(n, i, k, displacements),
+            Neighbours::Narrow(n) => self.row_sums(n, i, self.k, displacements),
+            Neighbours::Wide(n) => self.row_sums(n, i, self.k, displacements),
         }
     }
 
@@ -774,11 +772,10 @@ impl RowFit<'_> {
                     let m = k - 1;
                     let (c0, rest) = coefs.split_at_mut(m);
                     let (c1, c2) = rest.split_at_mut(m);
-                    for t in 0..k {
-                        nbrs[t] = I::new(nbr[t]);
+                    for (stored, &j) in nbrs.iter_mut().zip(&nbr) {
+                        *stored = I::new(j);
                     }
-                    for t in 0..m {
-                        let c = coef[t + 1];
+                    for (t, c) in coef[1..].iter().enumerate() {
                         (c0[t], c1[t], c2[t]) = (c.x, c.y, c.z);
                     }
                     fits.push((fit, reproduces_rest(p, n, self.sim, &nbr, &coef)));
@@ -1101,7 +1098,7 @@ mod tests {
         let d = simd_displacements(displacements);
         (0..t.len())
             .map(|i| {
-                let (u, g1, g2) = t.fitted(i, t.k, &d);
+                let (u, g1, g2) = t.fitted(i, &d);
                 let (t1, t2) = tangent_frame(t.normals[i]);
                 let n = (Vec3A::from(t1) + g1).cross(Vec3A::from(t2) + g2);
                 (t.rest[i] + Vec3::from(u), Vec3::from(n).normalize())
