@@ -227,9 +227,9 @@ fn bench_cloth_grid_reports_speed_and_sag() {
 
 #[test]
 fn run_writes_the_deformed_surface_and_reports_it() {
-    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenes/sphere_poke.ron");
-    let out_ply = scratch("poked.ply");
-    let out_png = scratch("poked.png");
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenes/hat.ron");
+    let out_ply = scratch("hat.ply");
+    let out_png = scratch("hat.png");
     let v = run_json(&[
         "run",
         scene.to_str().unwrap(),
@@ -254,16 +254,21 @@ fn run_writes_the_deformed_surface_and_reports_it() {
     ] {
         assert!(!v[key].is_null(), "missing {key}: {v}");
     }
-    assert_eq!(v["dense_points"], 3203);
-    assert_eq!(v["sim_points"], 338);
-    assert_eq!(v["steps"], 240);
+    // The hat's 3000 dense points, and the points resampling added to its crown.
+    assert_eq!(v["dense_points_at_rest"], 3000);
+    let resampled = v["resampled_points"].as_u64().unwrap();
+    assert!(resampled > 0);
+    assert_eq!(v["dense_points"].as_u64().unwrap(), 3000 + resampled);
+    assert_eq!(v["sim_points"], 300);
+    assert_eq!(v["steps"], 300);
     assert_eq!(v["integrator"], "implicit-euler");
     assert_eq!(v["finite"], true);
+    // The crown was pulled 0.9 out.
     let moved = v["max_displacement"].as_f64().unwrap();
-    assert!(moved > 0.3 && moved < 0.5, "{moved}");
+    assert!(moved > 0.7 && moved < 1.0, "{moved}");
     // The PLY holds the deformed surface with unit normals; the picture was drawn.
     let cloud = read_cloud(&out_ply, None).unwrap();
-    assert_eq!(cloud.len(), 3203);
+    assert_eq!(cloud.len() as u64, 3000 + resampled);
     let normals = cloud.normals().unwrap();
     assert!(normals.iter().all(|n| (n.length() - 1.0).abs() < 1e-4));
     let png = std::fs::read(&out_png).unwrap();

@@ -15,6 +15,7 @@ pub mod io;
 pub mod knn;
 pub mod network;
 pub mod normals;
+pub mod pipeline;
 pub mod resample;
 pub mod ring;
 pub mod scene;

@@ -182,6 +182,33 @@ impl SpringNetwork {
     pub fn is_empty(&self) -> bool {
         self.positions.is_empty()
     }
+
+    /// The triangles of the rings, each once, counter-clockwise around the points' normals:
+    /// point i with consecutive ring vertices a and b, listed by the smallest of the three
+    /// (so a triangle the rings disagree on may be missing).
+    pub fn triangles(&self) -> Vec<[u32; 3]> {
+        let mut triangles = Vec::new();
+        for i in 0..self.len() {
+            let ring = self.ring(i);
+            let m = ring.len();
+            let pairs = if self.boundary[i] {
+                m.saturating_sub(1)
+            } else {
+                m
+            };
+            if m < 2 {
+                continue;
+            }
+            let i = i as u32;
+            for j in 0..pairs {
+                let (a, b) = (ring[j], ring[(j + 1) % m]);
+                if i < a && i < b {
+                    triangles.push([i, a, b]);
+                }
+            }
+        }
+        triangles
+    }
 }
 
 /// Builds the spring network on simulation points with unit normals.

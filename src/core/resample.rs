@@ -47,8 +47,13 @@ const MAX_SIDE_DISTANCE: f32 = 2.0;
 /// A candidate closer than this fraction of its spacing to another point is dropped.
 const MIN_GAP: f32 = 1.0 / 3.0;
 
-/// Resampling settings.
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// Default number of simulation steps between resampling checks of a running surface.
+pub const DEFAULT_RESAMPLE_INTERVAL: u32 = 30;
+
+/// Resampling settings. In a scene file: `resample: Some((factor: 1.5))`, every field
+/// optional.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
 pub struct ResampleConfig {
     /// Resample where the local spacing grew by more than this factor (> 1).
     pub factor: f32,
@@ -56,6 +61,10 @@ pub struct ResampleConfig {
     pub max_passes: usize,
     /// New points at most, per point there was.
     pub max_new_per_point: f32,
+    /// A running surface checks every this many simulation steps (after the step whose
+    /// count is a multiple of it), so that a surface gets the same points however often it
+    /// is drawn.
+    pub interval: u32,
 }
 
 impl Default for ResampleConfig {
@@ -64,6 +73,7 @@ impl Default for ResampleConfig {
             factor: DEFAULT_RESAMPLE_FACTOR,
             max_passes: DEFAULT_RESAMPLE_PASSES,
             max_new_per_point: DEFAULT_MAX_NEW_PER_POINT,
+            interval: DEFAULT_RESAMPLE_INTERVAL,
         }
     }
 }
@@ -159,11 +169,10 @@ impl Resampler {
         let displacements = &simd_displacements(displacements);
         let mut report = ResampleReport::default();
         let budget = (transfer.len() as f64 * f64::from(config.max_new_per_point)) as usize;
-        let sim_index = KnnIndex::build(&transfer.sim_rest);
+        // Built when the first points are inserted: most checks of a running surface find
+        // nothing to split.
+        let mut sim_index = None;
         for _ in 0..config.max_passes {
-            // Candidates from every over-stretched point, in point order: the midpoint to
-            // its neighbour on either side along the stretch (none past a boundary).
-            let index = KnnIndex::build(&transfer.rest);
             // Each over-stretched point's stretch direction (the fit and its singular value
             // computed once per point and pass).
             let splits: Vec<Option<Vec3>> = (0..transfer.len())
@@ -175,6 +184,12 @@ impl Resampler {
                     (s > 0.0 && sigma * s > config.factor * self.sampled[i]).then_some(dir)
                 })
                 .collect();
+            if splits.iter().all(Option::is_none) {
+                break;
+            }
+            // Candidates from every over-stretched point, in point order: the midpoint to
+            // its neighbour on either side along the stretch (none past a boundary).
+            let index = KnnIndex::build(&transfer.rest);
             let candidates: Vec<(Vec3, Vec3, f32, f32)> = splits
                 .par_iter()
                 .enumerate()
@@ -225,7 +240,8 @@ impl Resampler {
             }
             let rest: Vec<Vec3> = accepted.iter().map(|c| c.0).collect();
             let normals: Vec<Vec3> = accepted.iter().map(|c| c.1).collect();
-            transfer.extend(&rest, &normals, &sim_index);
+            let sim_index = sim_index.get_or_insert_with(|| KnnIndex::build(&transfer.sim_rest));
+            transfer.extend(&rest, &normals, sim_index);
             self.spacing.extend(accepted.iter().map(|c| c.2));
             self.sampled.extend(accepted.iter().map(|c| c.3));
             report.inserted += accepted.len();

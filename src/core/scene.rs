@@ -7,14 +7,18 @@
 //! simulation points near a position to a target, active over a range of steps, optionally
 //! moving), the number of steps, and how to carry the motion back to the dense points.
 //!
+//! The settings are the core's own types: [`NormalsSpec`], [`SimplifyConfig`],
+//! [`SpringMaterial`], [`SolverConfig`], [`TransferConfig`] and [`ResampleConfig`], every
+//! field optional:
+//!
 //! ```
 //! use bevy_point_springs::core::scene::Scene;
 //!
 //! let scene = Scene::from_ron(r#"(
 //!     cloud: "sphere3203.ply",
 //!     simplify: (target: Some(338)),
-//!     material: (stretch_stiffness: 50.0, bend_stiffness: 10.0, drag: 2.0),
-//!     integrator: ImplicitEuler,
+//!     material: (stretch_stiffness: 50.0, bend_stiffness: 10.0),
+//!     solver: (integrator: ImplicitEuler, gravity: (0.0, 0.0, 0.0), drag: 2.0),
 //!     dt: 0.016666668,
 //!     steps: 180,
 //!     pins: [Sphere(centre: (0.0, -1.0, 0.0), radius: 0.3)],
@@ -24,10 +28,11 @@
 //! assert_eq!(scene.simplify.k, 12); // the default
 //! ```
 //!
-//! [`Scene::prepare`] loads and preprocesses everything (normals, §3 simplification, §4
-//! network, §5 transfer coefficients) into a [`SceneRun`]; [`SceneRun::run`] steps it;
-//! [`SceneRun::deformed`] transfers the motion to the dense points (and resamples where the
-//! scene asks for it):
+//! [`Scene::prepare`] loads the cloud and prepares it with the one pipeline
+//! ([`prepare_surface`]: normals, §3 simplification, §4 network, §5 transfer coefficients),
+//! pins the pinned points and sets up the [`Timeline`] of pulls, giving a [`SceneRun`];
+//! [`SceneRun::run`] steps it (resampling where the scene asks for it);
+//! [`SceneRun::deformed`] transfers the motion to the dense points:
 //!
 //! ```
 //! use bevy_point_springs::core::scene::Scene;
@@ -35,15 +40,15 @@
 //!
 //! let (scene, base) = Scene::load("assets/scenes/hat.ron".as_ref()).unwrap();
 //! let mut run = scene.prepare(&base).unwrap(); // normals, §3, §4, §5 coefficients
-//! run.run(&mut |_step| {}).unwrap(); // 300 implicit Euler steps
-//! let deformed = run.deformed().unwrap(); // §5 transfer, normals, resampling
-//! assert!(deformed.resampled.inserted > 0); // the stretched crown got new points
+//! run.run(&mut |_step| {}).unwrap(); // 300 implicit Euler steps, resampling every 30
+//! assert!(run.resampled().inserted > 0); // the stretched crown got new points
+//! let deformed = run.deformed().unwrap(); // §5 transfer and normals
 //! let out = std::env::temp_dir().join("hat.ply");
 //! write_ply(&out, &deformed.cloud, PlyEncoding::BinaryLittleEndian).unwrap();
 //! ```
 
+use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
-use std::time::Instant;
 
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
@@ -51,98 +56,22 @@ use serde::{Deserialize, Serialize};
 use crate::core::PointCloud;
 use crate::core::io::{LoadError, read_cloud};
 use crate::core::knn::KnnIndex;
-use crate::core::network::{NetworkError, SpringNetwork, build_network};
-use crate::core::normals::{DEFAULT_NORMAL_K, NormalsError, ensure_normals};
-use crate::core::resample::{
-    DEFAULT_MAX_NEW_PER_POINT, DEFAULT_RESAMPLE_FACTOR, DEFAULT_RESAMPLE_PASSES, ResampleConfig,
-    ResampleError, ResampleReport, Resampler,
+use crate::core::pipeline::{
+    NormalsSpec, PrepareError, PreparedSurface, Progress, SurfaceConfig, prepare_surface,
 };
-use crate::core::simplify::{DEFAULT_SIMPLIFY_K, SimplifyConfig, SimplifyError, simplify};
+use crate::core::resample::{ResampleConfig, ResampleError, ResampleReport};
+use crate::core::simplify::SimplifyConfig;
 use crate::core::solver::{
-    Anchor, AnchorId, DEFAULT_MAX_SUBSTEPS, DampingModel, Integrator, Solver, SolverConfig,
-    SolverError, SpringMaterial, StepReport, SubstepPolicy,
+    Anchor, AnchorId, Anchors, Masses, PointState, Solver, SolverConfig, SolverError,
+    SpringMaterial, StepReport,
 };
-use crate::core::transfer::{
-    DEFAULT_BANDWIDTH, DEFAULT_TRANSFER_K, Transfer, TransferConfig, TransferError, pca_normals_of,
-};
+use crate::core::transfer::{TransferConfig, TransferError};
 
 /// Most steps a scene may ask for.
 pub const MAX_SCENE_STEPS: usize = 10_000_000;
 
 /// Largest scene file read (scenes are a few hundred bytes).
 pub const MAX_SCENE_BYTES: u64 = 1 << 20;
-
-/// Where the normals of the dense cloud come from.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub enum NormalsSpec {
-    /// The file's own normals, estimated (PCA over `k` neighbours) when it has none.
-    FileOrEstimate(usize),
-    /// Always estimated, PCA over `k` neighbours.
-    Estimate(usize),
-}
-
-impl Default for NormalsSpec {
-    fn default() -> Self {
-        Self::FileOrEstimate(DEFAULT_NORMAL_K)
-    }
-}
-
-/// §3 settings.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(default, deny_unknown_fields)]
-pub struct SimplifySpec {
-    /// Stop at this many simulation points.
-    pub target: Option<usize>,
-    /// Stop when every region is at least this wide.
-    pub max_diameter: Option<f32>,
-    /// Neighbours per local ring.
-    pub k: usize,
-}
-
-impl Default for SimplifySpec {
-    fn default() -> Self {
-        Self {
-            target: None,
-            max_diameter: None,
-            k: DEFAULT_SIMPLIFY_K,
-        }
-    }
-}
-
-/// The surface's material.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(default, deny_unknown_fields)]
-pub struct MaterialSpec {
-    /// Mass per unit area ρ (eq 1).
-    pub density: f32,
-    /// Stiffness of stretch springs.
-    pub stretch_stiffness: f32,
-    /// Stiffness of bend springs.
-    pub bend_stiffness: f32,
-    /// Damping of stretch springs.
-    pub stretch_damping: f32,
-    /// Damping of bend springs.
-    pub bend_damping: f32,
-    /// Viscous drag rate μ (1/s).
-    pub drag: f32,
-    /// How spring damping acts.
-    pub damping_model: DampingModel,
-}
-
-impl Default for MaterialSpec {
-    fn default() -> Self {
-        let m = SpringMaterial::default();
-        Self {
-            density: crate::core::network::DEFAULT_DENSITY,
-            stretch_stiffness: m.stretch_stiffness,
-            bend_stiffness: m.bend_stiffness,
-            stretch_damping: m.stretch_damping,
-            bend_damping: m.bend_damping,
-            drag: 0.0,
-            damping_model: DampingModel::default(),
-        }
-    }
-}
 
 /// A region of space.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -212,67 +141,6 @@ pub struct Pull {
     pub end: Option<usize>,
 }
 
-/// How the dense surface follows and refreshes its normals.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub enum NormalUpdate {
-    /// From the fitted displacement gradient (exact for affine motion, no search).
-    Gradient,
-    /// PCA over `k` neighbours of the deformed cloud, the paper's way (slow).
-    Pca(usize),
-}
-
-/// §5 settings.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(default, deny_unknown_fields)]
-pub struct TransferSpec {
-    /// Simulation points each dense point follows.
-    pub k: usize,
-    /// Gaussian bandwidth as a multiple of the farthest neighbour's distance.
-    pub bandwidth: f32,
-    /// How normals are updated.
-    pub normals: NormalUpdate,
-}
-
-impl Default for TransferSpec {
-    fn default() -> Self {
-        Self {
-            k: DEFAULT_TRANSFER_K,
-            bandwidth: DEFAULT_BANDWIDTH,
-            normals: NormalUpdate::Gradient,
-        }
-    }
-}
-
-/// Resampling settings.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(default, deny_unknown_fields)]
-pub struct ResampleSpec {
-    /// Resample where the spacing grew by more than this factor.
-    pub factor: f32,
-    /// Passes at most.
-    pub max_passes: usize,
-    /// New points at most, per dense point.
-    pub max_new_per_point: f32,
-}
-
-impl Default for ResampleSpec {
-    fn default() -> Self {
-        Self {
-            factor: DEFAULT_RESAMPLE_FACTOR,
-            max_passes: DEFAULT_RESAMPLE_PASSES,
-            max_new_per_point: DEFAULT_MAX_NEW_PER_POINT,
-        }
-    }
-}
-
-fn no_gravity() -> Vec3 {
-    Vec3::ZERO
-}
-
-fn default_max_substeps() -> u32 {
-    DEFAULT_MAX_SUBSTEPS
-}
-
 /// A scene. See the module docs for the file format.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -282,24 +150,29 @@ pub struct Scene {
     /// Where its normals come from.
     #[serde(default)]
     pub normals: NormalsSpec,
-    /// §3 settings; at least one stopping rule is needed.
+    /// §3 settings.
     #[serde(default)]
-    pub simplify: SimplifySpec,
-    /// Material.
+    pub simplify: SimplifyConfig,
+    /// Density, spring stiffness and damping.
     #[serde(default)]
-    pub material: MaterialSpec,
-    /// Gravity (default none: modelling scenes usually float).
-    #[serde(default = "no_gravity")]
-    pub gravity: Vec3,
-    /// Integrator.
+    pub material: SpringMaterial,
+    /// Integrator, gravity (standard gravity unless the scene says otherwise), drag,
+    /// sub-steps.
     #[serde(default)]
-    pub integrator: Integrator,
-    /// Step length, s.
+    pub solver: SolverConfig,
+    /// §5 settings.
+    #[serde(default)]
+    pub transfer: TransferConfig,
+    /// Resampling where the surface stretches (none by default).
+    #[serde(default)]
+    pub resample: Option<ResampleConfig>,
+    /// Gas pressure stiffness inside a closed surface (none by default; see
+    /// [`SurfaceConfig::pressure`]).
+    #[serde(default)]
+    pub pressure: Option<f32>,
+    /// Step length, s (the fixed tick a plugin app should run at).
     pub dt: f32,
-    /// Sub-steps an explicit integrator may take per step.
-    #[serde(default = "default_max_substeps")]
-    pub max_substeps: u32,
-    /// Steps to run.
+    /// Steps the scene's timeline lasts (and `point-springs run` runs).
     pub steps: usize,
     /// Regions whose simulation points are held in place.
     #[serde(default)]
@@ -307,12 +180,6 @@ pub struct Scene {
     /// Pulls and pokes.
     #[serde(default)]
     pub pulls: Vec<Pull>,
-    /// §5 settings.
-    #[serde(default)]
-    pub transfer: TransferSpec,
-    /// Resampling after the run (none by default).
-    #[serde(default)]
-    pub resample: Option<ResampleSpec>,
 }
 
 /// Why a scene could not be loaded, prepared or run.
@@ -343,15 +210,9 @@ pub enum SceneError {
     /// The cloud could not be read.
     #[error(transparent)]
     Cloud(#[from] LoadError),
-    /// Normals could not be estimated.
+    /// The surface could not be prepared.
     #[error(transparent)]
-    Normals(#[from] NormalsError),
-    /// Simplification failed.
-    #[error(transparent)]
-    Simplify(#[from] SimplifyError),
-    /// The network could not be built.
-    #[error(transparent)]
-    Network(#[from] NetworkError),
+    Prepare(#[from] PrepareError),
     /// The solver refused.
     #[error(transparent)]
     Solver(#[from] SolverError),
@@ -377,7 +238,8 @@ impl Scene {
         Self::parse(text, Path::new("<string>"))
     }
 
-    fn parse(text: &str, path: &Path) -> Result<Self, SceneError> {
+    /// Parses a scene from RON text read from `path` (named in errors).
+    pub fn parse(text: &str, path: &Path) -> Result<Self, SceneError> {
         let scene: Scene = ron::from_str(text).map_err(|e| SceneError::Parse {
             path: path.to_owned(),
             message: e.to_string(),
@@ -407,6 +269,19 @@ impl Scene {
         Ok((scene, base))
     }
 
+    /// The surface settings of the scene, for [`prepare_surface`].
+    pub fn surface_config(&self) -> SurfaceConfig {
+        SurfaceConfig {
+            normals: self.normals,
+            simplify: self.simplify,
+            material: self.material,
+            solver: self.solver,
+            transfer: self.transfer,
+            resample: self.resample,
+            pressure: self.pressure,
+        }
+    }
+
     /// Checks every setting.
     pub fn validate(&self) -> Result<(), SceneError> {
         if !(self.dt > 0.0 && self.dt.is_finite()) {
@@ -421,33 +296,26 @@ impl Scene {
                 self.steps
             )));
         }
-        if self.max_substeps == 0 {
-            return Err(invalid("max_substeps must be at least 1"));
-        }
         if self.simplify.target.is_none() && self.simplify.max_diameter.is_none() {
             return Err(invalid(
                 "simplify needs a target or a max_diameter (or both)",
             ));
         }
-        if !self.gravity.is_finite() {
-            return Err(invalid("gravity must be finite"));
+        if let Err(PrepareError::Invalid(message)) = self.surface_config().validate() {
+            return Err(invalid(message));
         }
-        let m = &self.material;
-        if !(m.density > 0.0 && m.density.is_finite()) {
-            return Err(invalid("the density must be positive and finite"));
+        let s = &self.solver;
+        if !s.gravity.is_finite() {
+            return Err(invalid("solver.gravity must be finite"));
         }
-        for (name, v) in [
-            ("stretch_stiffness", m.stretch_stiffness),
-            ("bend_stiffness", m.bend_stiffness),
-            ("stretch_damping", m.stretch_damping),
-            ("bend_damping", m.bend_damping),
-            ("drag", m.drag),
-        ] {
-            if !finite_non_negative(v) {
-                return Err(invalid(format!(
-                    "material.{name} must be finite and not negative, got {v}"
-                )));
-            }
+        if !finite_non_negative(s.drag) {
+            return Err(invalid(format!(
+                "solver.drag must be finite and not negative, got {}",
+                s.drag
+            )));
+        }
+        if s.substeps == (crate::core::solver::SubstepPolicy::Auto { max_substeps: 0 }) {
+            return Err(invalid("solver.substeps needs max_substeps of at least 1"));
         }
         for (i, pin) in self.pins.iter().enumerate() {
             if !pin.valid() {
@@ -476,141 +344,60 @@ impl Scene {
                 )));
             }
         }
-        match self.normals {
-            NormalsSpec::FileOrEstimate(k) | NormalsSpec::Estimate(k) if k < 3 => {
-                return Err(invalid("normals need k of at least 3"));
-            }
-            _ => {}
-        }
-        if let NormalUpdate::Pca(k) = self.transfer.normals
-            && k < 3
-        {
-            return Err(invalid("PCA normals need k of at least 3"));
-        }
         Ok(())
     }
 
-    /// Loads the cloud (relative to `base`), gives it normals, simplifies it, builds the
-    /// network, the solver (pins applied) and the transfer coefficients.
+    /// Loads the cloud (relative to `base`) and prepares the scene ([`Self::prepare_cloud`]).
     pub fn prepare(&self, base: &Path) -> Result<SceneRun, SceneError> {
         self.validate()?;
-        let start = Instant::now();
-        let mut cloud = read_cloud(&base.join(&self.cloud), None)?;
-        match self.normals {
-            NormalsSpec::FileOrEstimate(k) => {
-                ensure_normals(&mut cloud, k)?;
-            }
-            NormalsSpec::Estimate(k) => {
-                let (positions, _) = cloud.into_parts();
-                cloud = PointCloud::new(positions, None).map_err(|e| invalid(e.to_string()))?;
-                ensure_normals(&mut cloud, k)?;
-            }
-        }
-        let (positions, normals) = (cloud.positions(), cloud.normals().unwrap_or_default());
-        let config = SimplifyConfig {
-            k: self.simplify.k,
-            target: self.simplify.target,
-            max_diameter: self.simplify.max_diameter,
-        };
-        let kept = simplify(positions, normals, &config)?;
-        let (sim_p, sim_n) = kept.gather(positions, normals);
-        let network = build_network(
-            &sim_p,
-            &sim_n,
-            &crate::core::network::NetworkConfig {
-                k: self.simplify.k,
-                density: self.material.density,
-            },
-        )?;
-        let m = &self.material;
-        let material = SpringMaterial {
-            stretch_stiffness: m.stretch_stiffness,
-            bend_stiffness: m.bend_stiffness,
-            stretch_damping: m.stretch_damping,
-            bend_damping: m.bend_damping,
-        };
-        let solver_config = SolverConfig {
-            integrator: self.integrator,
-            damping_model: m.damping_model,
-            gravity: self.gravity,
-            drag: m.drag,
-            substeps: SubstepPolicy::Auto {
-                max_substeps: self.max_substeps,
-            },
-            ..SolverConfig::default()
-        };
-        let mut solver = Solver::from_network(&network, &material, solver_config)?;
-        let mut pinned = 0;
-        for (i, pin) in self.pins.iter().enumerate() {
-            let inside: Vec<usize> = (0..network.len())
-                .filter(|&j| pin.contains(network.positions[j]))
-                .collect();
-            if inside.is_empty() {
-                return Err(SceneError::EmptyPin(i));
-            }
-            for j in inside {
-                if !solver.is_fixed(j) {
-                    pinned += 1;
-                }
-                solver.set_fixed(j, true)?;
-            }
-        }
-        let index = KnnIndex::build(&network.positions);
-        let pulls = self
-            .pulls
-            .iter()
-            .map(|pull| {
-                let grabbed: Vec<u32> = match pull.radius {
-                    Some(r) => (0..network.len() as u32)
-                        .filter(|&j| network.positions[j as usize].distance(pull.at) <= r)
-                        .collect(),
-                    None => Vec::new(),
-                };
-                // The nearest point at least, however small the radius.
-                let grabbed = if grabbed.is_empty() {
-                    index
-                        .nearest(pull.at, 1)
-                        .iter()
-                        .map(|nb| nb.index)
-                        .collect()
-                } else {
-                    grabbed
-                };
-                ActivePull {
-                    pull: *pull,
-                    end: pull.end.unwrap_or(self.steps),
-                    grabbed,
-                    anchors: Vec::new(),
-                }
-            })
-            .collect();
-        let transfer = Transfer::new(
-            positions,
-            normals,
-            &network.positions,
-            TransferConfig {
-                k: self.transfer.k,
-                bandwidth: self.transfer.bandwidth,
-            },
-        )?;
-        Ok(SceneRun {
-            scene: self.clone(),
-            dense: cloud,
-            network,
-            solver,
-            transfer,
-            pulls,
-            pinned,
-            step: 0,
-            prepare_seconds: start.elapsed().as_secs_f64(),
-            simulate_seconds: 0.0,
-            substeps: 0,
-            guard_trips: 0,
-            limited_steps: 0,
-            cg_iterations: 0,
-            resampler: None,
-        })
+        let cloud = read_cloud(&base.join(&self.cloud), None)?;
+        let rest = cloud.clone();
+        let (surface, timeline) = self.prepare_cloud(cloud, &mut |_| ControlFlow::Continue(()))?;
+        Ok(SceneRun::new(self.clone(), rest, surface, timeline))
     }
+
+    /// Prepares the scene on a cloud already loaded: the surface ([`prepare_surface`],
+    /// reporting to `progress`), its pins, and the timeline of its pulls.
+    pub fn prepare_cloud(
+        &self,
+        cloud: PointCloud,
+        progress: &mut dyn FnMut(Progress) -> ControlFlow<()>,
+    ) -> Result<(PreparedSurface, Timeline), SceneError> {
+        self.validate()?;
+        let mut surface = prepare_surface(cloud, &self.surface_config(), progress)?;
+        let solver = &mut surface.solver;
+        pin_regions(
+            &self.pins,
+            &surface.network.positions,
+            &mut solver.masses,
+            &mut solver.points,
+        )?;
+        let timeline = Timeline::new(self, &surface.network.positions);
+        Ok((surface, timeline))
+    }
+}
+
+/// Pins the points at `rest` inside each region (their velocities zeroed). Returns how
+/// many points are pinned; a region holding none is an error.
+pub fn pin_regions(
+    regions: &[Region],
+    rest: &[Vec3],
+    masses: &mut Masses,
+    points: &mut PointState,
+) -> Result<usize, SceneError> {
+    for (i, region) in regions.iter().enumerate() {
+        let inside: Vec<usize> = (0..rest.len())
+            .filter(|&j| region.contains(rest[j]))
+            .collect();
+        if inside.is_empty() {
+            return Err(SceneError::EmptyPin(i));
+        }
+        for j in inside {
+            masses.set_pinned(j, true)?;
+            points.set_velocity(j, Vec3::ZERO)?;
+        }
+    }
+    Ok(masses.pinned())
 }
 
 /// A pull's state during a run.
@@ -622,69 +409,82 @@ struct ActivePull {
     anchors: Vec<AnchorId>,
 }
 
-/// A prepared scene: the dense cloud, the network, the solver and the transfer.
+/// A scene's pulls and pokes on their schedule: before each of the scene's steps,
+/// [`Timeline::advance`] adds, moves and removes their anchor springs. After the scene's
+/// last step the timeline holds still: a pull that lasts to the end keeps holding.
 #[derive(Debug, Clone)]
-pub struct SceneRun {
-    /// The scene.
-    pub scene: Scene,
-    /// The dense cloud at rest, with normals.
-    pub dense: PointCloud,
-    /// The simulation points' network at rest.
-    pub network: SpringNetwork,
-    /// The solver.
-    pub solver: Solver,
-    /// The transfer coefficients.
-    pub transfer: Transfer,
+pub struct Timeline {
     pulls: Vec<ActivePull>,
-    /// Simulation points held by pins.
-    pub pinned: usize,
-    /// Steps taken.
-    pub step: usize,
-    /// Seconds spent preparing (loading, normals, §3, §4, §5 coefficients).
-    pub prepare_seconds: f64,
-    /// Seconds spent in the solver.
-    pub simulate_seconds: f64,
-    /// Sub-steps taken.
-    pub substeps: u64,
-    /// Steps the guard had to restore.
-    pub guard_trips: u64,
-    /// Steps that hit the sub-step cap.
-    pub limited_steps: u64,
-    /// Conjugate-gradient iterations.
-    pub cg_iterations: u64,
-    /// The rest spacing the resampling keeps track of (from the first resampling on).
-    resampler: Option<Resampler>,
+    steps: usize,
+    step: usize,
 }
 
-/// The deformed dense surface.
-#[derive(Debug, Clone)]
-pub struct Deformed {
-    /// Positions and normals.
-    pub cloud: PointCloud,
-    /// Largest displacement of a dense point.
-    pub max_displacement: f32,
-    /// What resampling did.
-    pub resampled: ResampleReport,
-    /// Seconds for the transfer and the normals (once).
-    pub transfer_seconds: f64,
-    /// Seconds for resampling.
-    pub resample_seconds: f64,
-}
+impl Timeline {
+    /// The timeline of `scene`'s pulls on simulation points at rest at `rest`: each grabs
+    /// the points within its radius of where it acts, at least the nearest one.
+    pub fn new(scene: &Scene, rest: &[Vec3]) -> Self {
+        let index = KnnIndex::build(rest);
+        let pulls = scene
+            .pulls
+            .iter()
+            .map(|pull| {
+                let mut grabbed: Vec<u32> = match pull.radius {
+                    Some(r) => (0..rest.len() as u32)
+                        .filter(|&j| rest[j as usize].distance(pull.at) <= r)
+                        .collect(),
+                    None => Vec::new(),
+                };
+                // The nearest point at least, however small the radius.
+                if grabbed.is_empty() {
+                    grabbed = index
+                        .nearest(pull.at, 1)
+                        .iter()
+                        .map(|nb| nb.index)
+                        .collect();
+                }
+                ActivePull {
+                    pull: *pull,
+                    end: pull.end.unwrap_or(scene.steps),
+                    grabbed,
+                    anchors: Vec::new(),
+                }
+            })
+            .collect();
+        Self {
+            pulls,
+            steps: scene.steps,
+            step: 0,
+        }
+    }
 
-impl SceneRun {
-    /// Grabbed simulation points per pull.
+    /// Steps counted so far.
+    pub fn step(&self) -> usize {
+        self.step
+    }
+
+    /// Steps the timeline lasts.
+    pub fn steps(&self) -> usize {
+        self.steps
+    }
+
+    /// Whether every step of the timeline has been taken.
+    pub fn finished(&self) -> bool {
+        self.step >= self.steps
+    }
+
+    /// Simulation points grabbed by each pull.
     pub fn pulled_points(&self) -> Vec<usize> {
         self.pulls.iter().map(|p| p.grabbed.len()).collect()
     }
 
-    /// Whether all steps are done.
-    pub fn finished(&self) -> bool {
-        self.step >= self.scene.steps
-    }
-
-    /// Takes one step: pulls start, move and let go on schedule.
-    pub fn step(&mut self) -> Result<StepReport, SceneError> {
+    /// What happens before the current step — pulls start, move and let go — applied to
+    /// `anchors` (on simulation points at rest at `rest`); then counts the step.
+    pub fn advance(&mut self, anchors: &mut Anchors, rest: &[Vec3]) -> Result<(), SolverError> {
         let step = self.step;
+        if step >= self.steps {
+            return Ok(());
+        }
+        let points = rest.len();
         for active in &mut self.pulls {
             let p = active.pull;
             if step == p.start {
@@ -692,38 +492,118 @@ impl SceneRun {
                     .grabbed
                     .iter()
                     .map(|&j| {
-                        let offset = self.network.positions[j as usize] - p.at;
-                        self.solver.add_anchor(Anchor {
+                        let offset = rest[j as usize] - p.at;
+                        let anchor = Anchor {
                             point: j,
                             target: p.to + offset,
                             stiffness: p.stiffness,
                             damping: p.damping,
-                        })
+                        };
+                        anchors.add(anchor, points)
                     })
                     .collect::<Result<_, _>>()?;
             }
             if step == active.end {
                 for id in active.anchors.drain(..) {
-                    self.solver.remove_anchor(id);
+                    anchors.remove(id);
                 }
             }
             if let (Some(to_end), true) = (p.to_end, (p.start..active.end).contains(&step)) {
                 let t = (step - p.start) as f32 / (active.end - p.start) as f32;
                 let target = p.to.lerp(to_end, t);
                 for (&j, &id) in active.grabbed.iter().zip(&active.anchors) {
-                    let offset = self.network.positions[j as usize] - p.at;
-                    self.solver.set_anchor_target(id, target + offset)?;
+                    let offset = rest[j as usize] - p.at;
+                    anchors.set_target(id, target + offset)?;
                 }
             }
         }
-        let start = Instant::now();
-        let report = self.solver.step(self.scene.dt)?;
-        self.simulate_seconds += start.elapsed().as_secs_f64();
-        self.substeps += u64::from(report.substeps);
-        self.guard_trips += u64::from(report.recovered);
-        self.limited_steps += u64::from(report.limited);
-        self.cg_iterations += u64::from(report.cg_iterations);
         self.step += 1;
+        Ok(())
+    }
+}
+
+/// A prepared scene, run headless: the surface, its timeline, and what the run did.
+#[derive(Debug, Clone)]
+pub struct SceneRun {
+    /// The scene.
+    pub scene: Scene,
+    /// The dense cloud as loaded (with normals when it had them).
+    pub rest: PointCloud,
+    /// The network, the solver and the dense surface.
+    pub surface: PreparedSurface,
+    /// The pulls on their schedule.
+    pub timeline: Timeline,
+    /// Simulation points held by pins.
+    pub pinned: usize,
+    /// What resampling did over the run.
+    resampled: ResampleReport,
+}
+
+/// The deformed dense surface.
+#[derive(Debug, Clone)]
+pub struct Deformed {
+    /// Positions and normals (resampled points after the original ones).
+    pub cloud: PointCloud,
+    /// Largest displacement of a dense point.
+    pub max_displacement: f32,
+}
+
+impl SceneRun {
+    fn new(scene: Scene, rest: PointCloud, surface: PreparedSurface, timeline: Timeline) -> Self {
+        Self {
+            pinned: surface.solver.masses.pinned(),
+            scene,
+            rest,
+            surface,
+            timeline,
+            resampled: ResampleReport::default(),
+        }
+    }
+
+    /// The solver.
+    pub fn solver(&self) -> &Solver {
+        &self.surface.solver
+    }
+
+    /// Steps taken.
+    pub fn step_count(&self) -> usize {
+        self.timeline.step()
+    }
+
+    /// Whether all steps are done.
+    pub fn finished(&self) -> bool {
+        self.timeline.finished()
+    }
+
+    /// What resampling did so far (summed over every check).
+    pub fn resampled(&self) -> ResampleReport {
+        self.resampled
+    }
+
+    /// The simulation part of a step: the timeline acts, then the solver steps.
+    pub fn simulate(&mut self) -> Result<StepReport, SceneError> {
+        let s = &mut self.surface;
+        self.timeline
+            .advance(&mut s.solver.anchors, &s.network.positions)?;
+        Ok(s.solver.step(self.scene.dt)?)
+    }
+
+    /// The dense part of a step: resampling, when it is due.
+    pub fn maintain(&mut self) -> Result<ResampleReport, SceneError> {
+        let s = &mut self.surface;
+        let steps = s.solver.diagnostics().steps;
+        let report = s.dense.maintain(&s.solver.points, steps)?;
+        let r = &mut self.resampled;
+        r.inserted += report.inserted;
+        r.passes += report.passes;
+        r.capped |= report.capped;
+        Ok(report)
+    }
+
+    /// Takes one step: [`Self::simulate`], then [`Self::maintain`].
+    pub fn step(&mut self) -> Result<StepReport, SceneError> {
+        let report = self.simulate()?;
+        self.maintain()?;
         Ok(report)
     }
 
@@ -731,62 +611,23 @@ impl SceneRun {
     pub fn run(&mut self, progress: &mut dyn FnMut(usize)) -> Result<(), SceneError> {
         while !self.finished() {
             self.step()?;
-            progress(self.step);
+            progress(self.step_count());
         }
         Ok(())
     }
 
-    /// Each simulation point's displacement from its rest position.
-    pub fn displacements(&self) -> Vec<Vec3> {
-        self.solver
-            .positions()
-            .iter()
-            .zip(&self.network.positions)
-            .map(|(p, r)| *p - *r)
-            .collect()
-    }
-
-    /// The deformed dense surface: the transfer of the current displacements, after
-    /// resampling when the scene asks for it. Inserted points stay and follow the simulation
-    /// from then on; a later call inserts only where the surface has stretched further.
+    /// The deformed dense surface: the transfer of the current state (inserted points
+    /// included; they follow the simulation from the step they were inserted at).
     pub fn deformed(&mut self) -> Result<Deformed, SceneError> {
-        let disp = self.displacements();
-        let mut resampled = ResampleReport::default();
-        let start = Instant::now();
-        if let Some(spec) = self.scene.resample {
-            let resampler = self
-                .resampler
-                .get_or_insert_with(|| Resampler::new(&self.transfer));
-            resampled = resampler.resample(
-                &mut self.transfer,
-                &disp,
-                &ResampleConfig {
-                    factor: spec.factor,
-                    max_passes: spec.max_passes,
-                    max_new_per_point: spec.max_new_per_point,
-                },
-            )?;
-        }
-        let resample_seconds = start.elapsed().as_secs_f64();
-        let start = Instant::now();
-        let (positions, mut normals) = self.transfer.deform(&disp)?;
-        if let NormalUpdate::Pca(k) = self.scene.transfer.normals {
-            normals = pca_normals_of(&positions, &normals, k);
-        }
-        let transfer_seconds = start.elapsed().as_secs_f64();
-        let max_displacement = positions
-            .iter()
-            .zip(self.transfer.rest_positions())
-            .map(|(p, r)| p.distance(*r))
-            .fold(0.0, f32::max);
-        let cloud = PointCloud::new(positions, Some(normals))
+        let s = &mut self.surface;
+        s.dense.follow(&s.solver.points)?;
+        let cloud = s
+            .dense
+            .to_cloud()
             .map_err(|e| invalid(format!("the deformed surface is not valid: {e}")))?;
         Ok(Deformed {
             cloud,
-            max_displacement,
-            resampled,
-            transfer_seconds,
-            resample_seconds,
+            max_displacement: s.dense.max_displacement(),
         })
     }
 }
@@ -800,9 +641,9 @@ mod tests {
     #[test]
     fn defaults_fill_the_rest() {
         let s = Scene::from_ron(MINIMAL).unwrap();
-        assert_eq!(s.integrator, Integrator::SymplecticEuler);
-        assert_eq!(s.gravity, Vec3::ZERO);
-        assert_eq!(s.transfer, TransferSpec::default());
+        assert_eq!(s.solver, SolverConfig::default());
+        assert_eq!(s.solver.gravity, crate::core::solver::STANDARD_GRAVITY);
+        assert_eq!(s.transfer, TransferConfig::default());
         assert!(s.pins.is_empty() && s.pulls.is_empty() && s.resample.is_none());
         // Round trip.
         let text = ron::to_string(&s).unwrap();
@@ -812,7 +653,10 @@ mod tests {
     #[test]
     fn mistakes_are_named() {
         let cases = [
-            (r#"(cloud: "a.ply", dt: 0.01, steps: 10)"#, "simplify needs"),
+            (
+                r#"(cloud: "a.ply", simplify: (target: None), dt: 0.01, steps: 10)"#,
+                "simplify needs",
+            ),
             (
                 r#"(cloud: "a.ply", simplify: (target: Some(5)), dt: 0.0, steps: 10)"#,
                 "dt must",
@@ -841,8 +685,18 @@ mod tests {
             ),
             (
                 r#"(cloud: "a.ply", simplify: (target: Some(5)), dt: 0.1, steps: 5,
-                    material: (drag: -2.0))"#,
-                "material.drag",
+                    solver: (drag: -2.0))"#,
+                "solver.drag",
+            ),
+            (
+                r#"(cloud: "a.ply", simplify: (target: Some(5)), dt: 0.1, steps: 5,
+                    material: (bend_damping: -2.0))"#,
+                "material.bend_damping",
+            ),
+            (
+                r#"(cloud: "a.ply", simplify: (target: Some(5)), dt: 0.1, steps: 5,
+                    resample: Some((interval: 0)))"#,
+                "resample.interval",
             ),
         ];
         for (text, needle) in cases {

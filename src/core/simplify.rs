@@ -35,9 +35,11 @@
 use std::cmp::Reverse;
 use std::collections::BinaryHeap;
 use std::num::NonZeroUsize;
+use std::ops::ControlFlow;
 
 use glam::Vec3;
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
+
 use rayon::prelude::*;
 
 use crate::core::cloud::PointCloud;
@@ -68,8 +70,14 @@ const EVAL_CHUNK: usize = 512;
 /// Progress is reported about this many times over a run.
 const PROGRESS_STEPS: usize = 100;
 
-/// How far to simplify. At least one of `target` and `max_diameter` must be set.
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// Simulation points a surface gets when nothing else is said (the paper's Table 1 runs
+/// 85 to 338).
+pub const DEFAULT_SIMULATION_POINTS: usize = 500;
+
+/// How far to simplify. At least one of `target` and `max_diameter` must be set; by default
+/// the target is [`DEFAULT_SIMULATION_POINTS`].
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
 pub struct SimplifyConfig {
     /// Neighbours per point (the paper's k, 10–20 recommended).
     pub k: usize,
@@ -77,6 +85,12 @@ pub struct SimplifyConfig {
     pub target: Option<usize>,
     /// Stop when every remaining point's d is at least this (the paper's threshold).
     pub max_diameter: Option<f32>,
+}
+
+impl Default for SimplifyConfig {
+    fn default() -> Self {
+        Self::target(DEFAULT_SIMULATION_POINTS)
+    }
 }
 
 impl SimplifyConfig {
@@ -146,6 +160,9 @@ pub enum SimplifyError {
     /// Point indices are stored in 32 bits.
     #[error("simplification supports at most 2^32 - 1 points, the cloud has {0}")]
     TooManyPoints(usize),
+    /// The progress callback asked to stop.
+    #[error("simplification was cancelled")]
+    Cancelled,
 }
 
 /// What ended a simplification.
@@ -157,6 +174,8 @@ pub enum StopReason {
     ThresholdReached,
     /// No remaining point can be removed (each has a degenerate neighbourhood).
     NothingRemovable,
+    /// The progress callback asked to stop.
+    Cancelled,
 }
 
 /// The simulation points chosen from a cloud.
@@ -221,15 +240,18 @@ pub fn simplify(
     normals: &[Vec3],
     config: &SimplifyConfig,
 ) -> Result<Simplification, SimplifyError> {
-    simplify_with_progress(positions, normals, config, &mut |_| {})
+    simplify_with_progress(positions, normals, config, &mut |_| {
+        ControlFlow::Continue(())
+    })
 }
 
-/// [`simplify`], calling `progress` about a hundred times along the way.
+/// [`simplify`], calling `progress` about a hundred times along the way; when it answers
+/// [`ControlFlow::Break`], simplification stops with [`SimplifyError::Cancelled`].
 pub fn simplify_with_progress(
     positions: &[Vec3],
     normals: &[Vec3],
     config: &SimplifyConfig,
-    progress: &mut dyn FnMut(SimplifyProgress),
+    progress: &mut dyn FnMut(SimplifyProgress) -> ControlFlow<()>,
 ) -> Result<Simplification, SimplifyError> {
     validate(positions, normals, config)?;
     // Work in Morton order: neighbours then sit close in memory (positions, neighbour rows,
@@ -247,6 +269,9 @@ pub fn simplify_with_progress(
         .unwrap_or(MIN_SIMULATION_POINTS)
         .max(MIN_SIMULATION_POINTS);
     let stop = state.run(floor, config, progress);
+    if stop == StopReason::Cancelled {
+        return Err(SimplifyError::Cancelled);
+    }
     let mut result = state.finish(stop);
     // Back to input indices, ascending.
     let mut back: Vec<(u32, f32, bool)> = result
@@ -563,7 +588,7 @@ impl<'a> State<'a> {
         &mut self,
         floor: usize,
         config: &SimplifyConfig,
-        progress: &mut dyn FnMut(SimplifyProgress),
+        progress: &mut dyn FnMut(SimplifyProgress) -> ControlFlow<()>,
     ) -> StopReason {
         let total = self.left.saturating_sub(floor).max(1);
         let step = (total / PROGRESS_STEPS).max(1);
@@ -595,7 +620,7 @@ impl<'a> State<'a> {
         &mut self,
         floor: usize,
         config: &SimplifyConfig,
-        progress: &mut dyn FnMut(SimplifyProgress),
+        progress: &mut dyn FnMut(SimplifyProgress) -> ControlFlow<()>,
         step: usize,
     ) -> StopReason {
         let threshold = config.max_diameter.unwrap_or(f32::INFINITY);
@@ -628,13 +653,16 @@ impl<'a> State<'a> {
                 self.duplicates_removed += 1;
             }
             self.remove(i);
-            if self.removed.is_multiple_of(step) {
-                progress(SimplifyProgress {
+            if self.removed.is_multiple_of(step)
+                && progress(SimplifyProgress {
                     points: self.left,
                     removed: self.removed,
                     target: config.target,
                     last_diameter: d,
-                });
+                })
+                .is_break()
+            {
+                return StopReason::Cancelled;
             }
         }
         StopReason::NothingRemovable

@@ -181,13 +181,29 @@ pub const REST_TOLERANCE: f64 = 1.0e-6;
 /// and the rest normal is kept.
 const MIN_NORMAL_LENGTH: f32 = 1.0e-12;
 
-/// How to build a transfer.
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// How the deformed dense surface gets its normals.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+pub enum NormalUpdate {
+    /// From the fitted displacement gradient (exact for affine motion, no search).
+    #[default]
+    Gradient,
+    /// PCA over `k` neighbours of the deformed cloud, the paper's way (a k-NN search per
+    /// frame: slow).
+    Pca(usize),
+}
+
+/// How to build a transfer. In a scene file: `transfer: (k: 10, bandwidth: 0.5)`, every
+/// field optional.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
 pub struct TransferConfig {
     /// Simulation points each dense point follows.
     pub k: usize,
     /// Gaussian bandwidth h as a multiple of the farthest neighbour's distance.
     pub bandwidth: f32,
+    /// How the deformed normals are found (not used by [`Transfer`] itself, whose frames
+    /// always give gradient normals; [`NormalUpdate::Pca`] replaces them afterwards).
+    pub normals: NormalUpdate,
 }
 
 impl Default for TransferConfig {
@@ -195,6 +211,7 @@ impl Default for TransferConfig {
         Self {
             k: DEFAULT_TRANSFER_K,
             bandwidth: DEFAULT_BANDWIDTH,
+            normals: NormalUpdate::Gradient,
         }
     }
 }
@@ -340,6 +357,63 @@ pub struct Transfer {
     pub(crate) report: FitReport,
 }
 
+/// What a frame of a [`Transfer`] reads of the simulation: the simulation points' current
+/// positions (and, where some rows need them, their displacements) as 16-byte SIMD
+/// vectors. Keep one per surface and refill it each frame: nothing is allocated once it
+/// has grown to size.
+#[derive(Debug, Clone, Default)]
+pub struct FrameInput {
+    current: Vec<Vec3A>,
+    displacements: Vec<Vec3A>,
+}
+
+impl FrameInput {
+    /// The input for simulation points displaced by `displacements` from the transfer's rest
+    /// positions (lengths checked by the caller).
+    fn from_displacements(transfer: &Transfer, displacements: &[Vec3]) -> Self {
+        let mut input = Self {
+            current: simd_positions(&transfer.sim_rest, displacements),
+            displacements: Vec::new(),
+        };
+        if !transfer.residual_rows.is_empty() {
+            input.displacements = simd_displacements(displacements);
+        }
+        input
+    }
+
+    /// The simulation points' positions the input holds.
+    pub(crate) fn current(&self) -> &[Vec3A] {
+        &self.current
+    }
+
+    /// Fills the input from the simulation points' current positions, given as three
+    /// coordinate arrays (see `PointState::position_arrays`).
+    pub fn set_positions(
+        &mut self,
+        transfer: &Transfer,
+        [x, y, z]: [&[f32]; 3],
+    ) -> Result<(), TransferError> {
+        let n = transfer.sim_rest.len();
+        if let Some(found) = [x.len(), y.len(), z.len()].into_iter().find(|&l| l != n) {
+            return Err(TransferError::DisplacementCount { expected: n, found });
+        }
+        self.current.clear();
+        self.current
+            .extend((0..n).map(|i| Vec3A::new(x[i], y[i], z[i])));
+        self.displacements.clear();
+        if !transfer.residual_rows.is_empty() {
+            let rest = &transfer.sim_rest;
+            self.displacements.extend(
+                self.current
+                    .iter()
+                    .zip(rest)
+                    .map(|(&c, &r)| c - Vec3A::from(r)),
+            );
+        }
+        Ok(())
+    }
+}
+
 /// The tangent frame (t₁, t₂) of a unit normal, with t₁ × t₂ = n (Duff et al.'s branchless
 /// basis: one division, no cross product; it runs for every dense point every frame).
 #[inline]
@@ -457,6 +531,11 @@ impl Transfer {
         self.sim_rest.len()
     }
 
+    /// Rest positions of the simulation points followed.
+    pub fn simulation_rest(&self) -> &[Vec3] {
+        &self.sim_rest
+    }
+
     /// Rest positions of the dense points.
     pub fn rest_positions(&self) -> &[Vec3] {
         &self.rest
@@ -536,68 +615,133 @@ impl Transfer {
         Ok(())
     }
 
-    /// A frame (lengths checked): [`Self::frame_rows`] for the index width, compiled for the
-    /// default k (and so fully unrolled) where that is the k.
+    /// A frame (lengths checked) from displacements, split in chunks that run in parallel
+    /// where [`parallel_frame`] says so.
     fn frame(&self, displacements: &[Vec3], positions: &mut [Vec3], normals: Option<&mut [Vec3]>) {
+        let input = FrameInput::from_displacements(self, displacements);
+        let size = frame_chunk(self.len());
+        for_each_chunk(size, positions, normals, |chunk, pos, nrm| {
+            self.rows(&input, chunk * size, pos, nrm);
+        });
+    }
+
+    /// The whole frame `input` describes: deformed positions, and unit normals unless
+    /// `normals` is empty. Large frames run in parallel on rayon's pool (see
+    /// [`Self::frame_rows`] to split the work some other way).
+    pub fn apply_frame(
+        &self,
+        input: &FrameInput,
+        positions: &mut [Vec3],
+        normals: &mut [Vec3],
+    ) -> Result<(), TransferError> {
+        if positions.len() != self.len() {
+            return Err(TransferError::OutputLength {
+                expected: self.len(),
+                found: positions.len(),
+            });
+        }
+        if input.current.len() != self.sim_rest.len() {
+            return Err(TransferError::DisplacementCount {
+                expected: self.sim_rest.len(),
+                found: input.current.len(),
+            });
+        }
+        if !(normals.is_empty() || normals.len() == positions.len()) {
+            return Err(TransferError::OutputLength {
+                expected: self.len(),
+                found: normals.len(),
+            });
+        }
+        let size = frame_chunk(self.len());
+        let normals = (!normals.is_empty()).then_some(normals);
+        for_each_chunk(size, positions, normals, |chunk, pos, nrm| {
+            self.rows(input, chunk * size, pos, nrm);
+        });
+        Ok(())
+    }
+
+    /// Rows `first..first + positions.len()` of the frame `input` describes: the deformed
+    /// positions, and the unit normals when `normals` is not empty (it must then be as long
+    /// as `positions`). Chunks of a frame are independent, so a caller may compute them on
+    /// threads of its own (the Bevy layer uses Bevy's task pool); the result does not
+    /// depend on how the rows are split.
+    pub fn frame_rows(
+        &self,
+        input: &FrameInput,
+        first: usize,
+        positions: &mut [Vec3],
+        normals: &mut [Vec3],
+    ) -> Result<(), TransferError> {
+        if input.current.len() != self.sim_rest.len() {
+            return Err(TransferError::DisplacementCount {
+                expected: self.sim_rest.len(),
+                found: input.current.len(),
+            });
+        }
+        let end = first.checked_add(positions.len());
+        if end.is_none_or(|end| end > self.len())
+            || !(normals.is_empty() || normals.len() == positions.len())
+        {
+            return Err(TransferError::OutputLength {
+                expected: self.len(),
+                found: end.unwrap_or(usize::MAX).max(normals.len()),
+            });
+        }
+        self.rows(input, first, positions, normals);
+        Ok(())
+    }
+
+    /// One chunk of rows (ranges checked): [`Self::chunk_rows`] for the index width,
+    /// compiled for the default k (and so fully unrolled) where that is the k.
+    fn rows(&self, input: &FrameInput, first: usize, pos: &mut [Vec3], nrm: &mut [Vec3]) {
         const D: usize = DEFAULT_TRANSFER_K;
         match (&self.neighbours, self.k == D) {
-            (Neighbours::Narrow(n), true) => {
-                self.frame_rows::<_, D>(n, displacements, positions, normals);
-            }
-            (Neighbours::Narrow(n), false) => {
-                self.frame_rows::<_, 0>(n, displacements, positions, normals);
-            }
-            (Neighbours::Wide(n), true) => {
-                self.frame_rows::<_, D>(n, displacements, positions, normals);
-            }
-            (Neighbours::Wide(n), false) => {
-                self.frame_rows::<_, 0>(n, displacements, positions, normals);
-            }
+            (Neighbours::Narrow(n), true) => self.chunk_rows::<_, D>(n, input, first, pos, nrm),
+            (Neighbours::Narrow(n), false) => self.chunk_rows::<_, 0>(n, input, first, pos, nrm),
+            (Neighbours::Wide(n), true) => self.chunk_rows::<_, D>(n, input, first, pos, nrm),
+            (Neighbours::Wide(n), false) => self.chunk_rows::<_, 0>(n, input, first, pos, nrm),
         }
     }
 
-    /// A frame over neighbour rows of one index width; `K` is k, or 0 for any.
-    fn frame_rows<I: NeighbourIndex, const K: usize>(
+    /// A chunk of rows over neighbour rows of one index width; `K` is k, or 0 for any.
+    fn chunk_rows<I: NeighbourIndex, const K: usize>(
         &self,
         neighbours: &[I],
-        displacements: &[Vec3],
-        positions: &mut [Vec3],
-        normals: Option<&mut [Vec3]>,
+        input: &FrameInput,
+        first: usize,
+        pos: &mut [Vec3],
+        nrm: &mut [Vec3],
     ) {
-        let current = simd_positions(&self.sim_rest, displacements);
-        let disp = (!self.residual_rows.is_empty()).then(|| simd_displacements(displacements));
-        let size = frame_chunk(self.len());
-        for_each_chunk(size, positions, normals, |chunk, pos, nrm| {
-            // A constant in the body itself (not captured), so that the loops unroll.
-            let k = if K == 0 { self.k } else { K };
-            let first = chunk * size;
-            // Where the fit reproduces the rest surface, the fitted position and tangents
-            // of the simulation points' current positions are the deformed ones.
-            pulp::Arch::new().dispatch(FrameRows::<I, K> {
-                transfer: self,
-                neighbours,
-                current: &current,
-                first,
-                positions: &mut *pos,
-                normals: &mut *nrm,
-            });
-            if let Some(disp) = &disp {
-                for &i in self.residual_rows_in(first, pos.len()) {
-                    let (u, g1, g2) = self.row_sums(neighbours, i, k, disp);
-                    pos[i - first] = self.rest[i] + Vec3::from(u);
-                    if let Some(n) = nrm.get_mut(i - first) {
-                        let (t1, t2) = tangent_frame(self.normals[i]);
-                        let (t1, t2) = (Vec3A::from(t1) + g1, Vec3A::from(t2) + g2);
-                        *n = Vec3::from(t1.cross(t2));
-                    }
+        // A constant in the body itself (not captured), so that the loops unroll.
+        let k = if K == 0 { self.k } else { K };
+        // Where the fit reproduces the rest surface, the fitted position and tangents of the
+        // simulation points' current positions are the deformed ones.
+        pulp::Arch::new().dispatch(FrameRows::<I, K> {
+            transfer: self,
+            neighbours,
+            current: &input.current,
+            first,
+            positions: &mut *pos,
+            normals: &mut *nrm,
+        });
+        let residual = self.residual_rows_in(first, pos.len());
+        if !residual.is_empty() {
+            let disp = &input.displacements;
+            for &i in residual {
+                let (u, g1, g2) = self.row_sums(neighbours, i, k, disp);
+                pos[i - first] = self.rest[i] + Vec3::from(u);
+                if let Some(n) = nrm.get_mut(i - first) {
+                    let (t1, t2) = tangent_frame(self.normals[i]);
+                    let (t1, t2) = (Vec3A::from(t1) + g1, Vec3A::from(t2) + g2);
+                    *n = Vec3::from(t1.cross(t2));
                 }
             }
-            // Normalised in a second, short loop: the square roots and divisions of many
-            // points then overlap instead of each waiting for its own.
-            for (row, n) in nrm.iter_mut().enumerate() {
-                *n = unit_or(*n, || self.normals[first + row]);
-            }
-        });
+        }
+        // Normalised in a second, short loop: the square roots and divisions of many points
+        // then overlap instead of each waiting for its own.
+        for (row, n) in nrm.iter_mut().enumerate() {
+            *n = unit_or(*n, || self.normals[first + row]);
+        }
     }
 
     /// Convenience: [`Self::apply`] into new vectors.

@@ -423,7 +423,11 @@ pub fn bench(case: BenchCase) -> Result<(), Failure> {
                 points,
                 sim,
                 sim_source,
-                config: TransferConfig { k, bandwidth },
+                config: TransferConfig {
+                    k,
+                    bandwidth,
+                    ..TransferConfig::default()
+                },
                 repeat,
                 no_literal,
             };

@@ -585,6 +585,7 @@ fn run(command: Command) -> Result<(), Failure> {
                     StopReason::TargetReached => "target",
                     StopReason::ThresholdReached => "max-diameter",
                     StopReason::NothingRemovable => "nothing-removable",
+                    StopReason::Cancelled => "cancelled",
                 },
                 stretch_springs: r.stretch_springs,
                 bend_springs: r.bend_springs,
@@ -726,28 +727,40 @@ fn run_scene(
         .map(|_| check_view(view, up, (PICTURE_WIDTH, PICTURE_HEIGHT)))
         .transpose()?;
     let (scene, base) = Scene::load(path).map_err(Failure::bad_input)?;
+    let start = Instant::now();
     let mut run = scene.prepare(&base).map_err(Failure::bad_input)?;
+    let prepare_seconds = start.elapsed().as_secs_f64();
     let tty = std::io::stderr().is_terminal();
     let total = scene.steps;
-    run.run(&mut |step| {
+    let (mut simulate_seconds, mut resample_seconds) = (0.0, 0.0);
+    while !run.finished() {
+        let start = Instant::now();
+        run.simulate().map_err(Failure::other)?;
+        let middle = Instant::now();
+        run.maintain().map_err(Failure::other)?;
+        simulate_seconds += (middle - start).as_secs_f64();
+        resample_seconds += middle.elapsed().as_secs_f64();
+        let step = run.step_count();
         if tty && (step % 10 == 0 || step == total) {
             let _ = write!(std::io::stderr(), "\rrun: step {step} of {total}   ");
             let _ = std::io::stderr().flush();
         }
-    })
-    .map_err(Failure::other)?;
+    }
     if tty {
         eprintln!();
     }
-    let energy = run.solver.energy().total();
+    let energy = run.solver().energy().total();
+    let start = Instant::now();
     let deformed = run.deformed().map_err(Failure::other)?;
+    let transfer_seconds = start.elapsed().as_secs_f64();
     if let Some(out) = &output {
         write_ply(out, &deformed.cloud, encoding(ascii)).map_err(Failure::other)?;
     }
     if let (Some(picture), Some(view)) = (&png, &view) {
-        render::render(&[&run.dense, &deformed.cloud], view, picture).map_err(Failure::other)?;
+        render::render(&[&run.rest, &deformed.cloud], view, picture).map_err(Failure::other)?;
     }
-    let finite = run.guard_trips == 0
+    let d = *run.solver().diagnostics();
+    let finite = d.guard_trips == 0
         && energy.is_finite()
         && deformed
             .cloud
@@ -755,34 +768,34 @@ fn run_scene(
             .iter()
             .chain(deformed.cloud.normals().unwrap_or_default())
             .all(|v| v.is_finite());
-    let r = &run.network.report;
+    let r = &run.surface.network.report;
     let report = RunReport {
         scene: path.display().to_string(),
         output: output.as_ref().map(|p| p.display().to_string()),
         png: png.as_ref().map(|p| p.display().to_string()),
         dense_points: deformed.cloud.len(),
-        dense_points_at_rest: run.dense.len(),
+        dense_points_at_rest: run.rest.len(),
         sim_points: r.points,
-        springs: run.solver.spring_count(),
+        springs: run.solver().spring_count(),
         stretch_springs: r.stretch_springs,
         bend_springs: r.bend_springs,
         pinned_points: run.pinned,
-        pulled_points: run.pulled_points(),
-        steps: run.step,
+        pulled_points: run.timeline.pulled_points(),
+        steps: run.step_count(),
         dt: scene.dt,
-        integrator: scene.integrator.to_string(),
-        substeps: run.substeps,
-        cg_iterations: run.cg_iterations,
-        guard_trips: run.guard_trips,
-        limited_steps: run.limited_steps,
-        ms_prepare: run.prepare_seconds * 1e3,
-        ms_per_step: run.simulate_seconds * 1e3 / run.step.max(1) as f64,
-        ms_transfer: deformed.transfer_seconds * 1e3,
-        ms_resample: deformed.resample_seconds * 1e3,
+        integrator: scene.solver.integrator.to_string(),
+        substeps: d.substeps,
+        cg_iterations: d.cg_iterations,
+        guard_trips: d.guard_trips,
+        limited_steps: d.limited_steps,
+        ms_prepare: prepare_seconds * 1e3,
+        ms_per_step: simulate_seconds * 1e3 / run.step_count().max(1) as f64,
+        ms_transfer: transfer_seconds * 1e3,
+        ms_resample: resample_seconds * 1e3,
         max_displacement: deformed.max_displacement,
         energy_final: energy,
         finite,
-        resampled_points: deformed.resampled.inserted,
+        resampled_points: run.resampled().inserted,
     };
     if json {
         return print_json(&report);
@@ -814,7 +827,7 @@ fn run_scene(
 }
 
 /// Prints simplification progress on one terminal line (only when stderr is a terminal).
-fn show_progress(p: SimplifyProgress) {
+fn show_progress(p: SimplifyProgress) -> std::ops::ControlFlow<()> {
     use std::io::{IsTerminal, Write};
     let mut err = std::io::stderr();
     if err.is_terminal() {
@@ -826,6 +839,7 @@ fn show_progress(p: SimplifyProgress) {
         );
         let _ = err.flush();
     }
+    std::ops::ControlFlow::Continue(())
 }
 
 fn print_json(value: &impl Serialize) -> Result<(), Failure> {

@@ -14,8 +14,10 @@
 
 use glam::{DMat3, DVec3};
 
-use super::springs::COINCIDENT_DISTANCE;
-use super::{DampingModel, Solver};
+use super::parts::PointState;
+use super::springs::{COINCIDENT_DISTANCE, SpringLayout};
+use super::stepper::{Model, Stepper};
+use super::{DampingModel, SolverConfig};
 
 /// A symmetric 3×3 matrix.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -183,21 +185,27 @@ fn apply(
     }
 }
 
-impl Solver {
-    /// One implicit Euler step of length `h`.
-    pub(super) fn implicit_step(&mut self, h: f32) -> CgOutcome {
-        let n = self.len();
-        let springs = self.springs.len();
-        self.compute_forces();
+impl Stepper {
+    /// One implicit Euler step of length `h` from the forces in `fa` and `fb`.
+    pub(super) fn implicit_step(
+        &mut self,
+        points: &mut PointState,
+        model: Model<'_>,
+        h: f32,
+    ) -> CgOutcome {
+        let n = points.len();
+        let layout = &model.springs.layout;
+        let springs = layout.len();
+        let config = *self.config();
         let mut scratch = std::mem::take(&mut self.implicit);
         scratch.resize(n, springs);
         let h = f64::from(h);
         let h2 = h * h;
-        let fixed: Vec<bool> = self.inv_mass.iter().map(|&w| w == 0.0).collect();
-        let drag = f64::from(self.config.drag);
-        let axial = self.config.damping_model == DampingModel::Axial;
-        let pos = |i: usize| self.x.get(i).as_dvec3();
-        let vel = |i: usize| self.v.get(i).as_dvec3();
+        let fixed: Vec<bool> = model.masses.inv_mass.iter().map(|&w| w == 0.0).collect();
+        let drag = f64::from(config.drag);
+        let axial = config.damping_model == DampingModel::Axial;
+        let pos = |i: usize| points.x.get(i).as_dvec3();
+        let vel = |i: usize| points.v.get(i).as_dvec3();
 
         // Right-hand side h·f₀ and the diagonal: M + h·μ·M.
         for i in 0..n {
@@ -207,21 +215,20 @@ impl Solver {
                 f64::from(self.fa.z[i] + self.fb.z[i]),
             );
             scratch.rhs[i] = h * f;
-            let m = f64::from(self.mass[i]);
+            let m = f64::from(model.masses.mass[i]);
             scratch.diag[i] = Sym3::scaled_identity(m * (1.0 + h * drag));
         }
-        for slot in &self.anchors {
-            let Some(a) = &slot.anchor else { continue };
+        for a in model.anchors.live() {
             let i = a.point as usize;
             let (k, kd) = (f64::from(a.stiffness), f64::from(a.damping));
             scratch.diag[i] = scratch.diag[i].add(Sym3::scaled_identity(h * kd + h2 * k));
             scratch.rhs[i] -= h2 * k * vel(i);
         }
         for s in 0..springs {
-            let (a, b) = (self.springs.a[s] as usize, self.springs.b[s] as usize);
-            let k = f64::from(self.springs.k[s]);
-            let kd = f64::from(self.springs.kd[s]);
-            let rest = f64::from(self.springs.rest[s]);
+            let (a, b) = (layout.a[s] as usize, layout.b[s] as usize);
+            let k = f64::from(layout.k[s]);
+            let kd = f64::from(layout.kd[s]);
+            let rest = f64::from(layout.rest[s]);
             let d = pos(b) - pos(a);
             let len = d.length();
             let (stiffness, damping) = if len > f64::from(COINCIDENT_DISTANCE) {
@@ -255,87 +262,93 @@ impl Solver {
             }
         }
 
-        let outcome = self.conjugate_gradient(&mut scratch, &fixed);
+        let outcome = conjugate_gradient(&config, layout, &mut scratch, &fixed);
 
         for (i, dv) in scratch.dv.iter().enumerate() {
             if fixed[i] {
                 continue;
             }
-            let v = (self.v.get(i).as_dvec3() + *dv).as_vec3();
-            self.v.set(i, v);
+            let v = (points.v.get(i).as_dvec3() + *dv).as_vec3();
+            points.v.set(i, v);
         }
         let hf = h as f32;
         for i in 0..n {
-            let x = self.x.get(i) + self.v.get(i) * hf;
-            self.x.set(i, x);
+            let x = points.x.get(i) + points.v.get(i) * hf;
+            points.x.set(i, x);
         }
         self.implicit = scratch;
         outcome
     }
+}
 
-    fn conjugate_gradient(&self, s: &mut Scratch, fixed: &[bool]) -> CgOutcome {
-        let (a_end, b_end) = (&self.springs.a, &self.springs.b);
-        let b_norm = dot(&s.rhs, &s.rhs).sqrt();
-        if b_norm == 0.0 || !b_norm.is_finite() {
-            s.reset_warm_start();
-            return CgOutcome {
-                iterations: 0,
-                converged: b_norm == 0.0,
-            };
+/// Solves the step's system by preconditioned conjugate gradient, from the warm start.
+fn conjugate_gradient(
+    config: &SolverConfig,
+    layout: &SpringLayout,
+    s: &mut Scratch,
+    fixed: &[bool],
+) -> CgOutcome {
+    let (a_end, b_end) = (&layout.a, &layout.b);
+    let b_norm = dot(&s.rhs, &s.rhs).sqrt();
+    if b_norm == 0.0 || !b_norm.is_finite() {
+        s.reset_warm_start();
+        return CgOutcome {
+            iterations: 0,
+            converged: b_norm == 0.0,
+        };
+    }
+    let tolerance = f64::from(config.cg_tolerance) * b_norm;
+    // r = b − A·dv from the warm start; keep it only if it beats starting from zero.
+    apply(&s.diag, &s.blocks, a_end, b_end, fixed, &s.dv, &mut s.q);
+    for i in 0..s.r.len() {
+        s.r[i] = s.rhs[i] - s.q[i];
+    }
+    let warm_start_helps = dot(&s.r, &s.r).sqrt() < b_norm;
+    if !warm_start_helps {
+        s.reset_warm_start();
+        s.r.copy_from_slice(&s.rhs);
+    }
+    for i in 0..s.z.len() {
+        s.z[i] = s.diag_inv[i].mul(s.r[i]);
+    }
+    s.p.copy_from_slice(&s.z);
+    let mut rz = dot(&s.r, &s.z);
+    let mut iterations = 0;
+    let mut converged = dot(&s.r, &s.r).sqrt() <= tolerance;
+    while !converged && iterations < config.cg_max_iterations {
+        apply(&s.diag, &s.blocks, a_end, b_end, fixed, &s.p, &mut s.q);
+        let pq = dot(&s.p, &s.q);
+        let descends = pq > 0.0;
+        if !descends {
+            break;
         }
-        let tolerance = f64::from(self.config.cg_tolerance) * b_norm;
-        // r = b − A·dv from the warm start; keep it only if it beats starting from zero.
-        apply(&s.diag, &s.blocks, a_end, b_end, fixed, &s.dv, &mut s.q);
-        for i in 0..s.r.len() {
-            s.r[i] = s.rhs[i] - s.q[i];
+        let alpha = rz / pq;
+        for i in 0..s.dv.len() {
+            s.dv[i] += alpha * s.p[i];
+            s.r[i] -= alpha * s.q[i];
         }
-        let warm_start_helps = dot(&s.r, &s.r).sqrt() < b_norm;
-        if !warm_start_helps {
-            s.reset_warm_start();
-            s.r.copy_from_slice(&s.rhs);
+        iterations += 1;
+        if dot(&s.r, &s.r).sqrt() <= tolerance {
+            converged = true;
+            break;
         }
         for i in 0..s.z.len() {
             s.z[i] = s.diag_inv[i].mul(s.r[i]);
         }
-        s.p.copy_from_slice(&s.z);
-        let mut rz = dot(&s.r, &s.z);
-        let mut iterations = 0;
-        let mut converged = dot(&s.r, &s.r).sqrt() <= tolerance;
-        while !converged && iterations < self.config.cg_max_iterations {
-            apply(&s.diag, &s.blocks, a_end, b_end, fixed, &s.p, &mut s.q);
-            let pq = dot(&s.p, &s.q);
-            let descends = pq > 0.0;
-            if !descends {
-                break;
-            }
-            let alpha = rz / pq;
-            for i in 0..s.dv.len() {
-                s.dv[i] += alpha * s.p[i];
-                s.r[i] -= alpha * s.q[i];
-            }
-            iterations += 1;
-            if dot(&s.r, &s.r).sqrt() <= tolerance {
-                converged = true;
-                break;
-            }
-            for i in 0..s.z.len() {
-                s.z[i] = s.diag_inv[i].mul(s.r[i]);
-            }
-            let rz_new = dot(&s.r, &s.z);
-            let beta = rz_new / rz;
-            rz = rz_new;
-            for i in 0..s.p.len() {
-                s.p[i] = s.z[i] + beta * s.p[i];
-            }
+        let rz_new = dot(&s.r, &s.z);
+        let beta = rz_new / rz;
+        rz = rz_new;
+        for i in 0..s.p.len() {
+            s.p[i] = s.z[i] + beta * s.p[i];
         }
-        if s.dv.iter().any(|d| !d.is_finite()) {
-            s.reset_warm_start();
-            converged = false;
-        }
-        CgOutcome {
-            iterations,
-            converged,
-        }
+    }
+    if s.dv.iter().any(|d| !d.is_finite()) {
+        s.reset_warm_start();
+        converged = false;
+    }
+    CgOutcome {
+        iterations,
+        converged,
     }
 }
 

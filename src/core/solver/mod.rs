@@ -72,7 +72,9 @@
 //! ```
 
 mod implicit;
+mod parts;
 mod springs;
+mod stepper;
 
 pub mod cloth;
 
@@ -80,8 +82,9 @@ use glam::Vec3;
 
 use crate::core::network::SpringNetwork;
 
-use springs::SpringLayout;
+pub use parts::{Anchors, ExternalForces, Masses, PointState, Pressure, Springs};
 pub use springs::{COINCIDENT_DISTANCE, SpringSpec};
+pub use stepper::{Model, Stepper};
 
 /// Largest magnitude a coordinate or velocity component may reach before the guard treats
 /// the state as runaway (squared distances must stay finite in `f32`).
@@ -104,67 +107,6 @@ pub const MAX_POINTS: usize = u32::MAX as usize;
 
 /// Standard gravity, m/s², along −Y (Bevy's up is +Y).
 pub const STANDARD_GRAVITY: Vec3 = Vec3::new(0.0, -9.81, 0.0);
-
-/// Positions, velocities or forces as three coordinate arrays.
-#[derive(Debug, Clone, Default, PartialEq)]
-pub(crate) struct Soa3 {
-    pub x: Vec<f32>,
-    pub y: Vec<f32>,
-    pub z: Vec<f32>,
-}
-
-impl Soa3 {
-    fn zeros(n: usize) -> Self {
-        Self {
-            x: vec![0.0; n],
-            y: vec![0.0; n],
-            z: vec![0.0; n],
-        }
-    }
-
-    fn from_vec3(v: &[Vec3]) -> Self {
-        Self {
-            x: v.iter().map(|p| p.x).collect(),
-            y: v.iter().map(|p| p.y).collect(),
-            z: v.iter().map(|p| p.z).collect(),
-        }
-    }
-
-    fn get(&self, i: usize) -> Vec3 {
-        Vec3::new(self.x[i], self.y[i], self.z[i])
-    }
-
-    fn set(&mut self, i: usize, v: Vec3) {
-        self.x[i] = v.x;
-        self.y[i] = v.y;
-        self.z[i] = v.z;
-    }
-
-    fn fill(&mut self, v: Vec3) {
-        self.x.fill(v.x);
-        self.y.fill(v.y);
-        self.z.fill(v.z);
-    }
-
-    fn copy_from(&mut self, other: &Soa3) {
-        self.x.copy_from_slice(&other.x);
-        self.y.copy_from_slice(&other.y);
-        self.z.copy_from_slice(&other.z);
-    }
-
-    fn to_vec3(&self) -> Vec<Vec3> {
-        (0..self.x.len()).map(|i| self.get(i)).collect()
-    }
-
-    /// Components that are not finite or exceed [`STATE_LIMIT`] (counting keeps the loop
-    /// branch-free, so it vectorises).
-    fn count_insane(&self) -> usize {
-        [&self.x, &self.y, &self.z]
-            .iter()
-            .map(|c| c.iter().map(|&v| usize::from(!sane(v))).sum::<usize>())
-            .sum()
-    }
-}
 
 /// How a solver advances time.
 #[derive(
@@ -242,7 +184,7 @@ pub enum DampingModel {
 }
 
 /// What an explicit integrator does with a step longer than its stable step.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
 pub enum SubstepPolicy {
     /// Split the step into equal sub-steps, at most `max_substeps`; beyond that the step is
     /// taken in `max_substeps` pieces and the report says it was limited. Where no step is
@@ -266,8 +208,10 @@ impl Default for SubstepPolicy {
     }
 }
 
-/// A solver's settings.
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// A solver's settings. In a scene file: `solver: (integrator: ImplicitEuler, drag: 4.0)`,
+/// every field optional.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
 pub struct SolverConfig {
     /// Time integration scheme.
     pub integrator: Integrator,
@@ -305,9 +249,15 @@ impl Default for SolverConfig {
     }
 }
 
-/// Stiffness and damping for the two kinds of spring of a [`SpringNetwork`].
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// A surface's material: its density (the masses of eq 1) and the stiffness and damping of
+/// the two kinds of spring of a [`SpringNetwork`]. In a scene file:
+/// `material: (density: 1.0, stretch_stiffness: 60.0, bend_stiffness: 20.0)`, every field
+/// optional.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
 pub struct SpringMaterial {
+    /// Mass per unit area ρ (eq 1).
+    pub density: f32,
     /// Stiffness of stretch springs (point to ring vertex).
     pub stretch_stiffness: f32,
     /// Stiffness of bend springs (ring vertex r to r + 2).
@@ -318,9 +268,44 @@ pub struct SpringMaterial {
     pub bend_damping: f32,
 }
 
+impl SpringMaterial {
+    /// The network's stretch springs, then its bend springs, with this material's
+    /// stiffness and damping (the order [`Self::parameters`] numbers them in).
+    pub fn springs(&self, network: &SpringNetwork) -> Vec<SpringSpec> {
+        let spec = |s: &crate::core::network::Spring, k: f32, kd: f32| SpringSpec {
+            a: s.a,
+            b: s.b,
+            rest_length: s.rest_length,
+            stiffness: k,
+            damping: kd,
+        };
+        let stretch = network
+            .stretch
+            .iter()
+            .map(|s| spec(s, self.stretch_stiffness, self.stretch_damping));
+        let bend = network
+            .bend
+            .iter()
+            .map(|s| spec(s, self.bend_stiffness, self.bend_damping));
+        stretch.chain(bend).collect()
+    }
+
+    /// Stiffness and damping of spring `index` of [`Self::springs`] on a network with
+    /// `stretch` stretch springs: for [`Springs::set_parameters`] when the material
+    /// changes.
+    pub fn parameters(&self, index: usize, stretch: usize) -> (f32, f32) {
+        if index < stretch {
+            (self.stretch_stiffness, self.stretch_damping)
+        } else {
+            (self.bend_stiffness, self.bend_damping)
+        }
+    }
+}
+
 impl Default for SpringMaterial {
     fn default() -> Self {
         Self {
+            density: crate::core::network::DEFAULT_DENSITY,
             stretch_stiffness: 200.0,
             bend_stiffness: 20.0,
             stretch_damping: 2.0,
@@ -346,8 +331,8 @@ pub struct Anchor {
 /// A handle to an anchor, valid until the anchor is removed.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct AnchorId {
-    slot: u32,
-    generation: u32,
+    pub(crate) slot: u32,
+    pub(crate) generation: u32,
 }
 
 /// Why a solver could not be built or stepped.
@@ -360,6 +345,16 @@ pub enum SolverError {
         positions: usize,
         /// Number of masses.
         masses: usize,
+    },
+    /// Two parts of one surface disagree on the number of points.
+    #[error("{expected} points but {found} {what}")]
+    PointCountMismatch {
+        /// Which part disagrees.
+        what: &'static str,
+        /// Number of points.
+        expected: usize,
+        /// The part's count.
+        found: usize,
     },
     /// More points than 32-bit indices reach.
     #[error("a solver takes at most {MAX_POINTS} points, got {0}")]
@@ -495,12 +490,14 @@ pub struct Energy {
     pub gravity: f64,
     /// ½Σk_r|target − x|² over anchors.
     pub anchor: f64,
+    /// The enclosed gas's (see [`Pressure`]).
+    pub pressure: f64,
 }
 
 impl Energy {
-    /// The sum of all four.
+    /// The sum of all five.
     pub fn total(&self) -> f64 {
-        self.kinetic + self.spring + self.gravity + self.anchor
+        self.kinetic + self.spring + self.gravity + self.anchor + self.pressure
     }
 }
 
@@ -531,48 +528,26 @@ impl Stability {
     }
 }
 
-#[derive(Debug, Clone)]
-struct AnchorSlot {
-    generation: u32,
-    anchor: Option<Anchor>,
-}
-
-/// One deformable surface's dynamic state and the machinery to advance it.
+/// One deformable surface's dynamic state and the machinery to advance it: its
+/// [`PointState`], [`Masses`], [`Springs`], [`Anchors`], [`ExternalForces`] and
+/// [`Stepper`], kept together. Each part is public, so a caller can also keep them apart
+/// (as the Bevy layer does, one component each) and step them with the same code.
 #[derive(Debug, Clone)]
 pub struct Solver {
-    config: SolverConfig,
-    x: Soa3,
-    v: Soa3,
-    /// Force accumulators: spring forces on `a` ends plus every per-point force, and spring
-    /// forces on `b` ends (see `springs`).
-    fa: Soa3,
-    fb: Soa3,
-    external: Soa3,
-    mass: Vec<f32>,
-    inv_mass: Vec<f32>,
-    springs: SpringLayout,
-    anchors: Vec<AnchorSlot>,
-    free_slots: Vec<u32>,
-    stability: Option<Stability>,
-    /// Where explicit steps write the new state (see [`Solver::integrate`]).
-    spare_x: Soa3,
-    spare_v: Soa3,
-    /// The state before the step, when the guard needs a copy.
-    snapshot: Option<(Soa3, Soa3)>,
-    implicit: implicit::Scratch,
-    diagnostics: Diagnostics,
-}
-
-fn check_vector(index: usize, v: Vec3, what: &'static str) -> Result<(), SolverError> {
-    if v.is_finite() && v.abs().max_element() <= STATE_LIMIT {
-        Ok(())
-    } else {
-        Err(SolverError::InvalidVector { index, what })
-    }
-}
-
-fn non_negative(v: f32) -> bool {
-    v.is_finite() && v >= 0.0
+    /// Positions and velocities.
+    pub points: PointState,
+    /// Masses and pins.
+    pub masses: Masses,
+    /// Springs.
+    pub springs: Springs,
+    /// Anchor springs (eq 5).
+    pub anchors: Anchors,
+    /// Forces from outside the surface (contacts fill them); they stay until changed.
+    pub external: ExternalForces,
+    /// Gas inside a closed surface, if any.
+    pub pressure: Option<Pressure>,
+    /// Settings, force buffers and running totals.
+    pub stepper: Stepper,
 }
 
 impl Solver {
@@ -593,56 +568,15 @@ impl Solver {
         if n > MAX_POINTS {
             return Err(SolverError::TooManyPoints(n));
         }
-        check_config(&config)?;
-        for (i, p) in positions.iter().enumerate() {
-            check_vector(i, *p, "position")?;
-        }
-        for (index, &mass) in masses.iter().enumerate() {
-            if !(mass.is_finite() && mass > 0.0) {
-                return Err(SolverError::InvalidMass { index, mass });
-            }
-        }
-        for (spring, s) in springs.iter().enumerate() {
-            if s.a == s.b || s.a as usize >= n || s.b as usize >= n {
-                return Err(SolverError::InvalidSpringEnds {
-                    spring,
-                    a: s.a,
-                    b: s.b,
-                    points: n,
-                });
-            }
-            for (what, value) in [
-                ("rest length", s.rest_length),
-                ("stiffness", s.stiffness),
-                ("damping", s.damping),
-            ] {
-                if !non_negative(value) {
-                    return Err(SolverError::InvalidSpringParameter {
-                        spring,
-                        what,
-                        value,
-                    });
-                }
-            }
-        }
+        let stepper = Stepper::new(config, n)?;
         Ok(Self {
-            config,
-            x: Soa3::from_vec3(positions),
-            v: Soa3::zeros(n),
-            fa: Soa3::zeros(n),
-            fb: Soa3::zeros(n),
-            external: Soa3::zeros(n),
-            mass: masses.to_vec(),
-            inv_mass: masses.iter().map(|m| 1.0 / m).collect(),
-            springs: SpringLayout::new(springs),
-            anchors: Vec::new(),
-            free_slots: Vec::new(),
-            stability: None,
-            spare_x: Soa3::zeros(n),
-            spare_v: Soa3::zeros(n),
-            snapshot: None,
-            implicit: implicit::Scratch::default(),
-            diagnostics: Diagnostics::default(),
+            points: PointState::new(positions)?,
+            masses: Masses::new(masses)?,
+            springs: Springs::new(springs, n)?,
+            anchors: Anchors::default(),
+            external: ExternalForces::zeros(n),
+            pressure: None,
+            stepper,
         })
     }
 
@@ -653,40 +587,37 @@ impl Solver {
         material: &SpringMaterial,
         config: SolverConfig,
     ) -> Result<Self, SolverError> {
-        let spec = |s: &crate::core::network::Spring, k: f32, kd: f32| SpringSpec {
-            a: s.a,
-            b: s.b,
-            rest_length: s.rest_length,
-            stiffness: k,
-            damping: kd,
-        };
-        let springs: Vec<SpringSpec> = network
-            .stretch
-            .iter()
-            .map(|s| spec(s, material.stretch_stiffness, material.stretch_damping))
-            .chain(
-                network
-                    .bend
-                    .iter()
-                    .map(|s| spec(s, material.bend_stiffness, material.bend_damping)),
-            )
-            .collect();
-        Self::new(&network.positions, &network.masses, &springs, config)
+        Self::new(
+            &network.positions,
+            &network.masses,
+            &material.springs(network),
+            config,
+        )
+    }
+
+    /// The read-only parts a step needs.
+    pub fn model(&self) -> Model<'_> {
+        Model {
+            masses: &self.masses,
+            springs: &self.springs,
+            anchors: &self.anchors,
+            pressure: self.pressure.as_ref(),
+        }
     }
 
     /// Number of points.
     pub fn len(&self) -> usize {
-        self.mass.len()
+        self.points.len()
     }
 
     /// Whether there are no points.
     pub fn is_empty(&self) -> bool {
-        self.mass.is_empty()
+        self.points.is_empty()
     }
 
     /// Number of springs.
     pub fn spring_count(&self) -> usize {
-        self.springs.real()
+        self.springs.len()
     }
 
     /// Springs that take the vectorised run loop (the rest take the scalar loop).
@@ -696,117 +627,87 @@ impl Solver {
 
     /// The springs, in the solver's internal order.
     pub fn springs(&self) -> impl Iterator<Item = SpringSpec> + '_ {
-        (0..self.springs.len())
-            .filter(|&s| !self.springs.is_padding(s))
-            .map(|s| self.springs.spec(s))
+        self.springs.iter().map(|(_, s)| s)
     }
 
     /// The settings.
     pub fn config(&self) -> &SolverConfig {
-        &self.config
+        self.stepper.config()
     }
 
     /// Replaces the settings.
     pub fn set_config(&mut self, config: SolverConfig) -> Result<(), SolverError> {
-        check_config(&config)?;
-        if config.integrator != self.config.integrator {
-            self.implicit = implicit::Scratch::default();
-        }
-        self.config = config;
-        self.stability = None;
-        Ok(())
+        self.stepper.set_config(config)
     }
 
     /// Switches the integrator.
     pub fn set_integrator(&mut self, integrator: Integrator) {
         let config = SolverConfig {
             integrator,
-            ..self.config
+            ..*self.stepper.config()
         };
-        // Only the integrator changes: nothing to validate.
-        self.config = config;
-        self.implicit = implicit::Scratch::default();
+        // Only the integrator changes, and a valid config stays valid.
+        let _ = self.stepper.set_config(config);
     }
 
     /// Running totals.
     pub fn diagnostics(&self) -> &Diagnostics {
-        &self.diagnostics
+        self.stepper.diagnostics()
     }
 
     /// Position of point `i`.
     pub fn position(&self, i: usize) -> Vec3 {
-        self.x.get(i)
+        self.points.position(i)
     }
 
     /// Velocity of point `i`.
     pub fn velocity(&self, i: usize) -> Vec3 {
-        self.v.get(i)
+        self.points.velocity(i)
     }
 
     /// All positions.
     pub fn positions(&self) -> Vec<Vec3> {
-        self.x.to_vec3()
+        self.points.positions()
     }
 
     /// All velocities.
     pub fn velocities(&self) -> Vec<Vec3> {
-        self.v.to_vec3()
+        self.points.velocities()
     }
 
     /// Positions as three coordinate slices (no copy).
     pub fn position_arrays(&self) -> [&[f32]; 3] {
-        [&self.x.x, &self.x.y, &self.x.z]
+        self.points.position_arrays()
     }
 
     /// Mass of point `i`.
     pub fn mass(&self, i: usize) -> f32 {
-        self.mass[i]
-    }
-
-    fn check_index(&self, index: usize) -> Result<(), SolverError> {
-        if index < self.len() {
-            Ok(())
-        } else {
-            Err(SolverError::PointOutOfRange {
-                index,
-                points: self.len(),
-            })
-        }
+        self.masses.mass(i)
     }
 
     /// Moves point `i` (teleport; its velocity is kept).
     pub fn set_position(&mut self, i: usize, p: Vec3) -> Result<(), SolverError> {
-        self.check_index(i)?;
-        check_vector(i, p, "position")?;
-        self.x.set(i, p);
-        Ok(())
+        self.points.set_position(i, p)
     }
 
     /// Sets point `i`'s velocity. A fixed point given a velocity moves with it, unaffected by
     /// forces (a kinematic point).
     pub fn set_velocity(&mut self, i: usize, v: Vec3) -> Result<(), SolverError> {
-        self.check_index(i)?;
-        check_vector(i, v, "velocity")?;
-        self.v.set(i, v);
-        Ok(())
+        self.points.set_velocity(i, v)
     }
 
     /// Whether point `i` is fixed.
     pub fn is_fixed(&self, i: usize) -> bool {
-        self.inv_mass[i] == 0.0
+        self.masses.is_pinned(i)
     }
 
     /// Fixes point `i` in place (its velocity is zeroed; no force or gravity moves it) or
     /// frees it again.
     pub fn set_fixed(&mut self, i: usize, fixed: bool) -> Result<(), SolverError> {
-        self.check_index(i)?;
+        self.masses.set_pinned(i, fixed)?;
         if fixed {
-            self.inv_mass[i] = 0.0;
-            self.v.set(i, Vec3::ZERO);
-        } else {
-            self.inv_mass[i] = 1.0 / self.mass[i];
+            self.points.set_velocity(i, Vec3::ZERO)?;
         }
-        self.stability = None;
         Ok(())
     }
 
@@ -817,536 +718,76 @@ impl Solver {
 
     /// Sets the external force on point `i`; it stays until changed.
     pub fn set_external_force(&mut self, i: usize, f: Vec3) -> Result<(), SolverError> {
-        self.check_index(i)?;
-        check_vector(i, f, "external force")?;
-        self.external.set(i, f);
-        Ok(())
+        self.external.set(i, f)
     }
 
     /// Sets every external force to zero.
     pub fn clear_external_forces(&mut self) {
-        self.external.fill(Vec3::ZERO);
-    }
-
-    fn check_anchor(&self, a: &Anchor) -> Result<(), SolverError> {
-        self.check_index(a.point as usize)?;
-        let bad = |what| SolverError::InvalidAnchor {
-            point: a.point,
-            what,
-        };
-        if check_vector(a.point as usize, a.target, "anchor target").is_err() {
-            return Err(bad("target"));
-        }
-        if !non_negative(a.stiffness) {
-            return Err(bad("stiffness"));
-        }
-        if !non_negative(a.damping) {
-            return Err(bad("damping"));
-        }
-        Ok(())
+        self.external.clear();
     }
 
     /// Adds an anchor spring (eq 5).
     pub fn add_anchor(&mut self, anchor: Anchor) -> Result<AnchorId, SolverError> {
-        self.check_anchor(&anchor)?;
-        self.stability = None;
-        if let Some(slot) = self.free_slots.pop() {
-            let s = &mut self.anchors[slot as usize];
-            s.anchor = Some(anchor);
-            return Ok(AnchorId {
-                slot,
-                generation: s.generation,
-            });
-        }
-        let slot = u32::try_from(self.anchors.len())
-            .map_err(|_| SolverError::InvalidConfig("too many anchors"))?;
-        self.anchors.push(AnchorSlot {
-            generation: 0,
-            anchor: Some(anchor),
-        });
-        Ok(AnchorId {
-            slot,
-            generation: 0,
-        })
-    }
-
-    fn slot(&self, id: AnchorId) -> Option<&AnchorSlot> {
-        self.anchors
-            .get(id.slot as usize)
-            .filter(|s| s.generation == id.generation && s.anchor.is_some())
+        self.anchors.add(anchor, self.points.len())
     }
 
     /// The anchor behind `id`, if it still exists.
     pub fn anchor(&self, id: AnchorId) -> Option<&Anchor> {
-        self.slot(id).and_then(|s| s.anchor.as_ref())
+        self.anchors.get(id)
     }
 
     /// Every live anchor.
     pub fn anchors(&self) -> impl Iterator<Item = (AnchorId, &Anchor)> + '_ {
-        self.anchors.iter().enumerate().filter_map(|(slot, s)| {
-            s.anchor.as_ref().map(|a| {
-                (
-                    AnchorId {
-                        slot: slot as u32,
-                        generation: s.generation,
-                    },
-                    a,
-                )
-            })
-        })
+        self.anchors.iter()
     }
 
     /// Removes an anchor, returning it.
     pub fn remove_anchor(&mut self, id: AnchorId) -> Option<Anchor> {
-        self.slot(id)?;
-        let s = &mut self.anchors[id.slot as usize];
-        let anchor = s.anchor.take();
-        s.generation = s.generation.wrapping_add(1);
-        self.free_slots.push(id.slot);
-        self.stability = None;
-        anchor
+        self.anchors.remove(id)
     }
 
     /// Moves an anchor's target (a drag).
     pub fn set_anchor_target(&mut self, id: AnchorId, target: Vec3) -> Result<(), SolverError> {
-        let point = self.anchor(id).ok_or(SolverError::UnknownAnchor)?.point;
-        check_vector(point as usize, target, "anchor target").map_err(|_| {
-            SolverError::InvalidAnchor {
-                point,
-                what: "target",
-            }
-        })?;
-        if let Some(a) = self.anchors[id.slot as usize].anchor.as_mut() {
-            a.target = target;
-        }
-        Ok(())
+        self.anchors.set_target(id, target)
     }
 
     /// Replaces an anchor's settings.
     pub fn set_anchor(&mut self, id: AnchorId, anchor: Anchor) -> Result<(), SolverError> {
-        self.anchor(id).ok_or(SolverError::UnknownAnchor)?;
-        self.check_anchor(&anchor)?;
-        self.anchors[id.slot as usize].anchor = Some(anchor);
-        self.stability = None;
-        Ok(())
+        self.anchors.set(id, anchor, self.points.len())
     }
 
     /// Removes every anchor (handles become invalid).
     pub fn clear_anchors(&mut self) {
-        let ids: Vec<AnchorId> = self.anchors().map(|(id, _)| id).collect();
-        for id in ids {
-            self.remove_anchor(id);
-        }
-    }
-
-    fn live_anchors(&self) -> impl Iterator<Item = &Anchor> + '_ {
-        self.anchors.iter().filter_map(|s| s.anchor.as_ref())
+        self.anchors.clear();
     }
 
     /// The stable-step estimate for the current network, masses, anchors and drag.
     pub fn stability(&mut self) -> Stability {
-        if let Some(s) = self.stability {
-            return s;
-        }
-        let s = self.estimate_stability();
-        self.stability = Some(s);
-        s
+        let model = Model {
+            masses: &self.masses,
+            springs: &self.springs,
+            anchors: &self.anchors,
+            pressure: self.pressure.as_ref(),
+        };
+        self.stepper.stability(model)
     }
 
-    fn estimate_stability(&self) -> Stability {
-        let n = self.len();
-        let mut stiff = vec![0.0f64; n];
-        let mut damp = vec![0.0f64; n];
-        let mut ratio = f64::INFINITY;
-        let free = |i: usize| self.inv_mass[i] > 0.0;
-        for s in 0..self.springs.len() {
-            let (a, b) = (self.springs.a[s] as usize, self.springs.b[s] as usize);
-            let (k, kd) = (f64::from(self.springs.k[s]), f64::from(self.springs.kd[s]));
-            for i in [a, b] {
-                stiff[i] += 2.0 * k;
-                damp[i] += 2.0 * kd;
-            }
-            if k > 0.0 && (free(a) || free(b)) {
-                ratio = ratio.min(kd / k);
-            }
-        }
-        for a in self.live_anchors() {
-            let i = a.point as usize;
-            stiff[i] += f64::from(a.stiffness);
-            damp[i] += f64::from(a.damping);
-            if a.stiffness > 0.0 && free(i) {
-                ratio = ratio.min(f64::from(a.damping) / f64::from(a.stiffness));
-            }
-        }
-        if self.config.damping_model == DampingModel::Axial && omega2_from(&stiff) > 0.0 {
-            // Axial damping leaves motion across a spring undamped, and a stretched spring
-            // resists that motion with k·(1 − l⁰/|l|): for explicit Euler those modes are
-            // undamped oscillations, which only drag keeps stable.
-            ratio = 0.0;
-        }
-        let (mut omega2, mut gamma) = (0.0f64, 0.0f64);
-        for i in 0..n {
-            let inv = f64::from(self.inv_mass[i]);
-            omega2 = omega2.max(stiff[i] * inv);
-            gamma = gamma.max(damp[i] * inv);
-        }
-        let drag = f64::from(self.config.drag);
-        gamma += drag;
-        let symplectic = if omega2 == 0.0 && gamma == 0.0 {
-            f64::INFINITY
-        } else {
-            4.0 / (gamma + (gamma * gamma + 4.0 * omega2).sqrt())
-        };
-        let oscillation = if omega2 > 0.0 {
-            ratio.min(f64::MAX) + drag / omega2
-        } else {
-            f64::INFINITY
-        };
-        let overdamping = if gamma > 0.0 {
-            2.0 / gamma
-        } else {
-            f64::INFINITY
-        };
-        Stability {
-            omega2_max: omega2 as f32,
-            gamma_max: gamma as f32,
-            damping_ratio_min: ratio as f32,
-            symplectic_dt: symplectic as f32,
-            explicit_dt: oscillation.min(overdamping) as f32,
-        }
-    }
-
-    /// Sub-steps for a step of `dt` under the current policy.
-    fn plan(&mut self, dt: f32) -> Result<(u32, bool), SolverError> {
-        let integrator = self.config.integrator;
-        if !integrator.is_explicit() || self.config.substeps == SubstepPolicy::Unchecked {
-            return Ok((1, false));
-        }
-        let stable = self.stability().dt(integrator) * self.config.stability_margin;
-        if dt <= stable {
-            return Ok((1, false));
-        }
-        let needed = f64::from(dt) / f64::from(stable);
-        match self.config.substeps {
-            SubstepPolicy::Refuse => Err(SolverError::StepTooLarge {
-                dt,
-                stable_dt: stable,
-                integrator,
-            }),
-            // No number of sub-steps helps: say so instead of burning them.
-            SubstepPolicy::Auto { .. } if stable == 0.0 => Err(SolverError::StepTooLarge {
-                dt,
-                stable_dt: stable,
-                integrator,
-            }),
-            SubstepPolicy::Auto { max_substeps } => {
-                if needed > f64::from(max_substeps) {
-                    Ok((max_substeps, true))
-                } else {
-                    Ok((needed.ceil() as u32, false))
-                }
-            }
-            SubstepPolicy::Unchecked => Ok((1, false)),
-        }
-    }
-
-    /// Advances the state by `dt` seconds.
+    /// Advances the state by `dt` seconds: [`Stepper::accumulate_forces`], then
+    /// [`Stepper::advance`].
     pub fn step(&mut self, dt: f32) -> Result<StepReport, SolverError> {
-        if !(dt.is_finite() && dt >= 0.0) {
-            return Err(SolverError::InvalidTimeStep(dt));
-        }
-        if dt == 0.0 || self.is_empty() {
-            let report = StepReport {
-                cg_converged: true,
-                finite: true,
-                ..StepReport::default()
-            };
-            self.diagnostics.last = report;
-            return Ok(report);
-        }
-        let (substeps, limited) = self.plan(dt)?;
-        let integrator = self.config.integrator;
-        // The guard's way back: an explicit single step writes the new state beside the old
-        // one and swaps, so the old state is still there (no copy); anything else copies.
-        let swap_restores = integrator.is_explicit() && substeps == 1;
-        if self.config.guard && !swap_restores {
-            let (x, v) = self
-                .snapshot
-                .get_or_insert_with(|| (self.x.clone(), self.v.clone()));
-            x.copy_from(&self.x);
-            v.copy_from(&self.v);
-        }
-        let h = dt / substeps as f32;
-        let mut report = StepReport {
-            substeps,
-            substep_dt: h,
-            limited,
-            cg_converged: true,
-            ..StepReport::default()
+        let model = Model {
+            masses: &self.masses,
+            springs: &self.springs,
+            anchors: &self.anchors,
+            pressure: self.pressure.as_ref(),
         };
-        let mut insane = 0;
-        for _ in 0..substeps {
-            insane = match integrator {
-                Integrator::ExplicitEuler => {
-                    self.compute_forces();
-                    self.integrate::<false>(h)
-                }
-                Integrator::SymplecticEuler => {
-                    self.compute_forces();
-                    self.integrate::<true>(h)
-                }
-                Integrator::ImplicitEuler => {
-                    let cg = self.implicit_step(h);
-                    report.cg_iterations += cg.iterations;
-                    report.cg_converged &= cg.converged;
-                    self.x.count_insane() + self.v.count_insane()
-                }
-            };
-        }
-        report.finite = insane == 0;
-        if !report.finite && self.config.guard {
-            if swap_restores {
-                std::mem::swap(&mut self.x, &mut self.spare_x);
-                std::mem::swap(&mut self.v, &mut self.spare_v);
-            } else if let Some((x, v)) = &self.snapshot {
-                self.x.copy_from(x);
-                self.v.copy_from(v);
-            }
-            self.implicit.reset_warm_start();
-            report.recovered = true;
-            report.finite = true;
-        }
-        let d = &mut self.diagnostics;
-        d.steps += 1;
-        d.substeps += u64::from(substeps);
-        d.limited_steps += u64::from(limited);
-        d.cg_iterations += u64::from(report.cg_iterations);
-        d.cg_unconverged += u64::from(!report.cg_converged);
-        d.guard_trips += u64::from(report.recovered);
-        d.time += f64::from(dt);
-        d.last = report;
-        Ok(report)
-    }
-
-    /// Every force at the current state: `fa` gets m·(g − μ·v) + external + anchors + the
-    /// springs' forces on their `a` ends, `fb` the springs' forces on their `b` ends.
-    fn compute_forces(&mut self) {
-        let g = self.config.gravity;
-        let mu = self.config.drag;
-        base_forces(
-            &mut self.fa.x,
-            &self.v.x,
-            &self.external.x,
-            &self.mass,
-            g.x,
-            mu,
-        );
-        base_forces(
-            &mut self.fa.y,
-            &self.v.y,
-            &self.external.y,
-            &self.mass,
-            g.y,
-            mu,
-        );
-        base_forces(
-            &mut self.fa.z,
-            &self.v.z,
-            &self.external.z,
-            &self.mass,
-            g.z,
-            mu,
-        );
-        self.fb.fill(Vec3::ZERO);
-        match self.config.damping_model {
-            DampingModel::Relative => {
-                self.springs
-                    .accumulate::<false>(&self.x, &self.v, &mut self.fa, &mut self.fb);
-            }
-            DampingModel::Axial => {
-                self.springs
-                    .accumulate::<true>(&self.x, &self.v, &mut self.fa, &mut self.fb);
-            }
-        }
-        for slot in &self.anchors {
-            let Some(a) = &slot.anchor else { continue };
-            let i = a.point as usize;
-            let f = a.stiffness * (a.target - self.x.get(i)) - a.damping * self.v.get(i);
-            self.fa.set(i, self.fa.get(i) + f);
-        }
-    }
-
-    /// One explicit step of length `h` from the forces in `fa` and `fb`: symplectic Euler
-    /// (v += a·h, then x += v·h) or forward Euler (x += v·h and v += a·h from the same old
-    /// state). The new state is written to the spare buffers, which then change places with
-    /// the current ones. Returns the number of insane components in the new state.
-    fn integrate<const SYMPLECTIC: bool>(&mut self, h: f32) -> usize {
-        let inv = &self.inv_mass;
-        let mut insane = 0;
-        for (x, v, fa, fb, x_out, v_out) in [
-            (
-                &self.x.x,
-                &self.v.x,
-                &self.fa.x,
-                &self.fb.x,
-                &mut self.spare_x.x,
-                &mut self.spare_v.x,
-            ),
-            (
-                &self.x.y,
-                &self.v.y,
-                &self.fa.y,
-                &self.fb.y,
-                &mut self.spare_x.y,
-                &mut self.spare_v.y,
-            ),
-            (
-                &self.x.z,
-                &self.v.z,
-                &self.fa.z,
-                &self.fb.z,
-                &mut self.spare_x.z,
-                &mut self.spare_v.z,
-            ),
-        ] {
-            insane += pulp::Arch::new().dispatch(IntegrateAxis::<SYMPLECTIC> {
-                x,
-                v,
-                fa,
-                fb,
-                inv,
-                h,
-                x_out,
-                v_out,
-            });
-        }
-        std::mem::swap(&mut self.x, &mut self.spare_x);
-        std::mem::swap(&mut self.v, &mut self.spare_v);
-        insane as usize
+        self.stepper.accumulate_forces(&self.points, model)?;
+        self.stepper
+            .advance(&mut self.points, model, &self.external, dt)
     }
 
     /// Kinetic, spring, gravitational and anchor energy of the current state.
     pub fn energy(&self) -> Energy {
-        let mut e = Energy {
-            spring: self.springs.energy(&self.x),
-            ..Energy::default()
-        };
-        let g = self.config.gravity.as_dvec3();
-        for i in 0..self.len() {
-            if self.inv_mass[i] == 0.0 {
-                continue;
-            }
-            let m = f64::from(self.mass[i]);
-            e.kinetic += 0.5 * m * self.v.get(i).as_dvec3().length_squared();
-            e.gravity -= m * g.dot(self.x.get(i).as_dvec3());
-        }
-        for a in self.live_anchors() {
-            let d = (a.target - self.x.get(a.point as usize)).as_dvec3();
-            e.anchor += 0.5 * f64::from(a.stiffness) * d.length_squared();
-        }
-        e
+        self.stepper.energy(&self.points, self.model())
     }
-}
-
-/// [`integrate_axis`]'s arguments, handed to [`pulp`] so that the loop is compiled for the
-/// widest vector unit the processor has (see the spring kernel's `Accumulate`).
-struct IntegrateAxis<'a, const SYMPLECTIC: bool> {
-    x: &'a [f32],
-    v: &'a [f32],
-    fa: &'a [f32],
-    fb: &'a [f32],
-    inv: &'a [f32],
-    h: f32,
-    x_out: &'a mut [f32],
-    v_out: &'a mut [f32],
-}
-
-impl<const SYMPLECTIC: bool> pulp::WithSimd for IntegrateAxis<'_, SYMPLECTIC> {
-    type Output = u32;
-
-    #[inline(always)]
-    fn with_simd<S: pulp::Simd>(self, _simd: S) -> u32 {
-        integrate_axis::<SYMPLECTIC>(
-            self.x, self.v, self.fa, self.fb, self.inv, self.h, self.x_out, self.v_out,
-        )
-    }
-}
-
-/// One axis of an explicit step (see [`Solver::integrate`]); counts new components that are
-/// not finite or beyond [`STATE_LIMIT`] (branch-free, so the loop vectorises).
-#[allow(clippy::too_many_arguments)]
-#[inline(always)]
-fn integrate_axis<const SYMPLECTIC: bool>(
-    x: &[f32],
-    v: &[f32],
-    fa: &[f32],
-    fb: &[f32],
-    inv: &[f32],
-    h: f32,
-    x_out: &mut [f32],
-    v_out: &mut [f32],
-) -> u32 {
-    let n = x.len();
-    let (v, fa, fb, inv) = (&v[..n], &fa[..n], &fb[..n], &inv[..n]);
-    let (x_out, v_out) = (&mut x_out[..n], &mut v_out[..n]);
-    let mut insane = 0u32;
-    for i in 0..n {
-        let dv = inv[i] * (fa[i] + fb[i]) * h;
-        let vn = v[i] + dv;
-        let xn = x[i] + if SYMPLECTIC { vn } else { v[i] } * h;
-        v_out[i] = vn;
-        x_out[i] = xn;
-        insane += u32::from(!sane(xn)) + u32::from(!sane(vn));
-    }
-    insane
-}
-
-/// Whether a state component is finite and within [`STATE_LIMIT`] (false for NaN).
-#[inline(always)]
-fn sane(v: f32) -> bool {
-    v.abs() <= STATE_LIMIT
-}
-
-/// One axis of m·(g − μ·v) + external.
-fn base_forces(fa: &mut [f32], v: &[f32], ext: &[f32], m: &[f32], g: f32, mu: f32) {
-    let n = fa.len();
-    let (v, ext, m) = (&v[..n], &ext[..n], &m[..n]);
-    for i in 0..n {
-        fa[i] = m[i] * (g - mu * v[i]) + ext[i];
-    }
-}
-
-/// Whether any point has stiffness at all (the sums are never negative).
-fn omega2_from(stiff: &[f64]) -> f64 {
-    stiff.iter().copied().fold(0.0, f64::max)
-}
-
-fn check_config(c: &SolverConfig) -> Result<(), SolverError> {
-    if !c.gravity.is_finite() {
-        return Err(SolverError::InvalidConfig("gravity must be finite"));
-    }
-    if !non_negative(c.drag) {
-        return Err(SolverError::InvalidConfig(
-            "drag must be finite and not negative",
-        ));
-    }
-    if !(c.stability_margin > 0.0 && c.stability_margin <= 1.0) {
-        return Err(SolverError::InvalidConfig(
-            "the stability margin must be in (0, 1]",
-        ));
-    }
-    if !(c.cg_tolerance > 0.0 && c.cg_tolerance < 1.0) {
-        return Err(SolverError::InvalidConfig(
-            "the CG tolerance must be in (0, 1)",
-        ));
-    }
-    if c.cg_max_iterations == 0 {
-        return Err(SolverError::InvalidConfig(
-            "CG needs at least one iteration",
-        ));
-    }
-    if c.substeps == (SubstepPolicy::Auto { max_substeps: 0 }) {
-        return Err(SolverError::InvalidConfig("at least one sub-step per step"));
-    }
-    Ok(())
 }

@@ -19,7 +19,7 @@
 //!
 //! [`SpringLayout::order`] maps internal positions back to the caller's spring indices.
 
-use super::Soa3;
+use super::parts::Soa3;
 
 /// Shortest run kept as a run; shorter ones go to the scattered loop.
 pub(crate) const MIN_RUN: usize = 4;

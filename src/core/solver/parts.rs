@@ -1,0 +1,725 @@
+//! The pieces of a surface's dynamic state, each its own type so that a caller (the Bevy
+//! layer keeps each in its own component) can read or change one without the others:
+//! [`PointState`] (positions and velocities), [`Masses`] (and pins), [`Springs`],
+//! [`Anchors`] (eq 5) and [`ExternalForces`]. A [`Stepper`](super::Stepper) advances them.
+//!
+//! Changes that alter the stable step (masses, pins, springs, anchor stiffness) give the
+//! piece a new *revision*, a number unique across all pieces of the process, so that a
+//! stepper knows when its stability estimate is stale without being told.
+
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use glam::Vec3;
+
+use super::springs::SpringLayout;
+use super::{Anchor, AnchorId, STATE_LIMIT, SolverError, SpringSpec};
+
+/// A fresh revision number (never 0, never repeated in a process).
+pub(crate) fn next_revision() -> u64 {
+    static NEXT: AtomicU64 = AtomicU64::new(1);
+    NEXT.fetch_add(1, Ordering::Relaxed)
+}
+
+/// Whether a vector is finite and within [`STATE_LIMIT`].
+pub(crate) fn check_vector(index: usize, v: Vec3, what: &'static str) -> Result<(), SolverError> {
+    if v.is_finite() && v.abs().max_element() <= STATE_LIMIT {
+        Ok(())
+    } else {
+        Err(SolverError::InvalidVector { index, what })
+    }
+}
+
+/// Whether a parameter is finite and not negative.
+pub(crate) fn non_negative(v: f32) -> bool {
+    v.is_finite() && v >= 0.0
+}
+
+fn check_index(index: usize, points: usize) -> Result<(), SolverError> {
+    if index < points {
+        Ok(())
+    } else {
+        Err(SolverError::PointOutOfRange { index, points })
+    }
+}
+
+/// Positions, velocities or forces as three coordinate arrays.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub(crate) struct Soa3 {
+    pub x: Vec<f32>,
+    pub y: Vec<f32>,
+    pub z: Vec<f32>,
+}
+
+impl Soa3 {
+    pub fn zeros(n: usize) -> Self {
+        Self {
+            x: vec![0.0; n],
+            y: vec![0.0; n],
+            z: vec![0.0; n],
+        }
+    }
+
+    pub fn from_vec3(v: &[Vec3]) -> Self {
+        Self {
+            x: v.iter().map(|p| p.x).collect(),
+            y: v.iter().map(|p| p.y).collect(),
+            z: v.iter().map(|p| p.z).collect(),
+        }
+    }
+
+    pub fn len(&self) -> usize {
+        self.x.len()
+    }
+
+    pub fn get(&self, i: usize) -> Vec3 {
+        Vec3::new(self.x[i], self.y[i], self.z[i])
+    }
+
+    pub fn set(&mut self, i: usize, v: Vec3) {
+        self.x[i] = v.x;
+        self.y[i] = v.y;
+        self.z[i] = v.z;
+    }
+
+    pub fn fill(&mut self, v: Vec3) {
+        self.x.fill(v.x);
+        self.y.fill(v.y);
+        self.z.fill(v.z);
+    }
+
+    pub fn copy_from(&mut self, other: &Soa3) {
+        self.x.copy_from_slice(&other.x);
+        self.y.copy_from_slice(&other.y);
+        self.z.copy_from_slice(&other.z);
+    }
+
+    pub fn to_vec3(&self) -> Vec<Vec3> {
+        (0..self.len()).map(|i| self.get(i)).collect()
+    }
+
+    /// Components that are not finite or exceed [`STATE_LIMIT`] (counting keeps the loop
+    /// branch-free, so it vectorises).
+    pub fn count_insane(&self) -> usize {
+        [&self.x, &self.y, &self.z]
+            .iter()
+            .map(|c| c.iter().map(|&v| usize::from(!sane(v))).sum::<usize>())
+            .sum()
+    }
+}
+
+/// Whether a state component is finite and within [`STATE_LIMIT`] (false for NaN).
+#[inline(always)]
+pub(crate) fn sane(v: f32) -> bool {
+    v.abs() <= STATE_LIMIT
+}
+
+/// The points' positions and velocities (each stored as three coordinate arrays).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct PointState {
+    pub(crate) x: Soa3,
+    pub(crate) v: Soa3,
+}
+
+impl PointState {
+    /// Points at `positions`, at rest. Every position must be finite and within
+    /// [`STATE_LIMIT`].
+    pub fn new(positions: &[Vec3]) -> Result<Self, SolverError> {
+        for (i, p) in positions.iter().enumerate() {
+            check_vector(i, *p, "position")?;
+        }
+        Ok(Self {
+            x: Soa3::from_vec3(positions),
+            v: Soa3::zeros(positions.len()),
+        })
+    }
+
+    /// Number of points.
+    pub fn len(&self) -> usize {
+        self.x.len()
+    }
+
+    /// Whether there are no points.
+    pub fn is_empty(&self) -> bool {
+        self.x.len() == 0
+    }
+
+    /// Position of point `i` (panics past the end, like a slice).
+    pub fn position(&self, i: usize) -> Vec3 {
+        self.x.get(i)
+    }
+
+    /// Velocity of point `i` (panics past the end, like a slice).
+    pub fn velocity(&self, i: usize) -> Vec3 {
+        self.v.get(i)
+    }
+
+    /// All positions, gathered.
+    pub fn positions(&self) -> Vec<Vec3> {
+        self.x.to_vec3()
+    }
+
+    /// All velocities, gathered.
+    pub fn velocities(&self) -> Vec<Vec3> {
+        self.v.to_vec3()
+    }
+
+    /// Positions as three coordinate slices (no copy).
+    pub fn position_arrays(&self) -> [&[f32]; 3] {
+        [&self.x.x, &self.x.y, &self.x.z]
+    }
+
+    /// Velocities as three coordinate slices (no copy).
+    pub fn velocity_arrays(&self) -> [&[f32]; 3] {
+        [&self.v.x, &self.v.y, &self.v.z]
+    }
+
+    /// Every position, in order, without gathering them into a vector first.
+    pub fn iter_positions(&self) -> impl ExactSizeIterator<Item = Vec3> + '_ {
+        (0..self.len()).map(|i| self.x.get(i))
+    }
+
+    /// The largest speed of any point.
+    pub fn max_speed(&self) -> f32 {
+        let v = &self.v;
+        (0..self.len())
+            .map(|i| v.x[i] * v.x[i] + v.y[i] * v.y[i] + v.z[i] * v.z[i])
+            .fold(0.0f32, f32::max)
+            .sqrt()
+    }
+
+    /// Moves point `i` (teleport; its velocity is kept).
+    pub fn set_position(&mut self, i: usize, p: Vec3) -> Result<(), SolverError> {
+        check_index(i, self.len())?;
+        check_vector(i, p, "position")?;
+        self.x.set(i, p);
+        Ok(())
+    }
+
+    /// Sets point `i`'s velocity. A pinned point given a velocity moves with it, unaffected
+    /// by forces (a kinematic point).
+    pub fn set_velocity(&mut self, i: usize, v: Vec3) -> Result<(), SolverError> {
+        check_index(i, self.len())?;
+        check_vector(i, v, "velocity")?;
+        self.v.set(i, v);
+        Ok(())
+    }
+}
+
+/// Each point's mass, and which points are pinned (held where they are: their inverse mass
+/// is zero, so no force moves them).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Masses {
+    pub(crate) mass: Vec<f32>,
+    pub(crate) inv_mass: Vec<f32>,
+    pub(crate) revision: u64,
+}
+
+impl Masses {
+    /// Free points of the given masses, each positive and finite.
+    pub fn new(masses: &[f32]) -> Result<Self, SolverError> {
+        for (index, &mass) in masses.iter().enumerate() {
+            if !(mass.is_finite() && mass > 0.0) {
+                return Err(SolverError::InvalidMass { index, mass });
+            }
+        }
+        Ok(Self {
+            mass: masses.to_vec(),
+            inv_mass: masses.iter().map(|m| 1.0 / m).collect(),
+            revision: next_revision(),
+        })
+    }
+
+    /// Number of points.
+    pub fn len(&self) -> usize {
+        self.mass.len()
+    }
+
+    /// Whether there are no points.
+    pub fn is_empty(&self) -> bool {
+        self.mass.is_empty()
+    }
+
+    /// Mass of point `i`.
+    pub fn mass(&self, i: usize) -> f32 {
+        self.mass[i]
+    }
+
+    /// Every mass.
+    pub fn masses(&self) -> &[f32] {
+        &self.mass
+    }
+
+    /// The sum of all masses.
+    pub fn total(&self) -> f64 {
+        self.mass.iter().map(|&m| f64::from(m)).sum()
+    }
+
+    /// Whether point `i` is pinned.
+    pub fn is_pinned(&self, i: usize) -> bool {
+        self.inv_mass[i] == 0.0
+    }
+
+    /// Number of pinned points.
+    pub fn pinned(&self) -> usize {
+        self.inv_mass.iter().filter(|&&w| w == 0.0).count()
+    }
+
+    /// Pins point `i` (no force moves it; a velocity it has carries it along, so zero it
+    /// to hold the point still) or frees it again.
+    pub fn set_pinned(&mut self, i: usize, pinned: bool) -> Result<(), SolverError> {
+        check_index(i, self.len())?;
+        self.inv_mass[i] = if pinned { 0.0 } else { 1.0 / self.mass[i] };
+        self.revision = next_revision();
+        Ok(())
+    }
+}
+
+/// The springs (eq 2–3), stored in the order the force kernels want (see the `springs`
+/// module); [`Springs::iter`] gives them back.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Springs {
+    pub(crate) layout: SpringLayout,
+    pub(crate) revision: u64,
+}
+
+impl Springs {
+    /// Lays out `springs` between `points` points: endpoints distinct and in range; rest
+    /// length, stiffness and damping finite and not negative.
+    pub fn new(springs: &[SpringSpec], points: usize) -> Result<Self, SolverError> {
+        for (spring, s) in springs.iter().enumerate() {
+            if s.a == s.b || s.a as usize >= points || s.b as usize >= points {
+                return Err(SolverError::InvalidSpringEnds {
+                    spring,
+                    a: s.a,
+                    b: s.b,
+                    points,
+                });
+            }
+            for (what, value) in [
+                ("rest length", s.rest_length),
+                ("stiffness", s.stiffness),
+                ("damping", s.damping),
+            ] {
+                if !non_negative(value) {
+                    return Err(SolverError::InvalidSpringParameter {
+                        spring,
+                        what,
+                        value,
+                    });
+                }
+            }
+        }
+        Ok(Self {
+            layout: SpringLayout::new(springs),
+            revision: next_revision(),
+        })
+    }
+
+    /// Number of springs.
+    pub fn len(&self) -> usize {
+        self.layout.real()
+    }
+
+    /// Whether there are none.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Springs that take the vectorised run loop (the rest take the scalar loop).
+    pub fn in_runs(&self) -> usize {
+        self.layout.in_runs()
+    }
+
+    /// Every spring with the index it was given at as `(index, spring)`, in storage order.
+    pub fn iter(&self) -> impl Iterator<Item = (usize, SpringSpec)> + '_ {
+        let l = &self.layout;
+        (0..l.len())
+            .filter(|&s| !l.is_padding(s))
+            .map(|s| (l.order[s] as usize, l.spec(s)))
+    }
+
+    /// Sets the stiffness and damping of every spring from its index: `of(index)` gives
+    /// `(stiffness, damping)`, each finite and not negative (others are refused, nothing
+    /// changed).
+    pub fn set_parameters(
+        &mut self,
+        mut of: impl FnMut(usize) -> (f32, f32),
+    ) -> Result<(), SolverError> {
+        let l = &self.layout;
+        let mut values = Vec::with_capacity(l.len());
+        for s in 0..l.len() {
+            if l.is_padding(s) {
+                values.push((0.0, 0.0));
+                continue;
+            }
+            let index = l.order[s] as usize;
+            let (k, kd) = of(index);
+            for (what, value) in [("stiffness", k), ("damping", kd)] {
+                if !non_negative(value) {
+                    return Err(SolverError::InvalidSpringParameter {
+                        spring: index,
+                        what,
+                        value,
+                    });
+                }
+            }
+            values.push((k, kd));
+        }
+        for (s, (k, kd)) in values.into_iter().enumerate() {
+            self.layout.k[s] = k;
+            self.layout.kd[s] = kd;
+        }
+        self.revision = next_revision();
+        Ok(())
+    }
+
+    /// Potential energy ½k(|l| − l⁰)² of the springs at `points`.
+    pub fn energy(&self, points: &PointState) -> f64 {
+        self.layout.energy(&points.x)
+    }
+}
+
+#[derive(Debug, Clone, PartialEq)]
+struct AnchorSlot {
+    generation: u32,
+    anchor: Option<Anchor>,
+}
+
+/// Anchor springs (eq 5) from points to world positions: pins that give, pokes and drags.
+/// Added, moved and removed at any time; each has an [`AnchorId`] valid until it is
+/// removed.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Anchors {
+    slots: Vec<AnchorSlot>,
+    free: Vec<u32>,
+    pub(crate) revision: u64,
+}
+
+impl Anchors {
+    fn check(&self, a: &Anchor, points: usize) -> Result<(), SolverError> {
+        check_index(a.point as usize, points)?;
+        let bad = |what| SolverError::InvalidAnchor {
+            point: a.point,
+            what,
+        };
+        if check_vector(a.point as usize, a.target, "anchor target").is_err() {
+            return Err(bad("target"));
+        }
+        if !non_negative(a.stiffness) {
+            return Err(bad("stiffness"));
+        }
+        if !non_negative(a.damping) {
+            return Err(bad("damping"));
+        }
+        Ok(())
+    }
+
+    /// Adds an anchor on one of `points` points.
+    pub fn add(&mut self, anchor: Anchor, points: usize) -> Result<AnchorId, SolverError> {
+        self.check(&anchor, points)?;
+        self.revision = next_revision();
+        if let Some(slot) = self.free.pop() {
+            let s = &mut self.slots[slot as usize];
+            s.anchor = Some(anchor);
+            return Ok(AnchorId {
+                slot,
+                generation: s.generation,
+            });
+        }
+        let slot = u32::try_from(self.slots.len())
+            .map_err(|_| SolverError::InvalidConfig("too many anchors"))?;
+        self.slots.push(AnchorSlot {
+            generation: 0,
+            anchor: Some(anchor),
+        });
+        Ok(AnchorId {
+            slot,
+            generation: 0,
+        })
+    }
+
+    fn slot(&self, id: AnchorId) -> Option<&AnchorSlot> {
+        self.slots
+            .get(id.slot as usize)
+            .filter(|s| s.generation == id.generation && s.anchor.is_some())
+    }
+
+    /// The anchor behind `id`, if it still exists.
+    pub fn get(&self, id: AnchorId) -> Option<&Anchor> {
+        self.slot(id).and_then(|s| s.anchor.as_ref())
+    }
+
+    /// Number of live anchors.
+    pub fn len(&self) -> usize {
+        self.slots.len() - self.free.len()
+    }
+
+    /// Whether there are none.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Every live anchor.
+    pub fn iter(&self) -> impl Iterator<Item = (AnchorId, &Anchor)> + '_ {
+        self.slots.iter().enumerate().filter_map(|(slot, s)| {
+            s.anchor.as_ref().map(|a| {
+                (
+                    AnchorId {
+                        slot: slot as u32,
+                        generation: s.generation,
+                    },
+                    a,
+                )
+            })
+        })
+    }
+
+    /// Every live anchor, without ids.
+    pub(crate) fn live(&self) -> impl Iterator<Item = &Anchor> + '_ {
+        self.slots.iter().filter_map(|s| s.anchor.as_ref())
+    }
+
+    /// Removes an anchor, returning it.
+    pub fn remove(&mut self, id: AnchorId) -> Option<Anchor> {
+        self.slot(id)?;
+        let s = &mut self.slots[id.slot as usize];
+        let anchor = s.anchor.take();
+        s.generation = s.generation.wrapping_add(1);
+        self.free.push(id.slot);
+        self.revision = next_revision();
+        anchor
+    }
+
+    /// Moves an anchor's target (a drag). The stable step does not depend on targets, so
+    /// this does not make a stepper re-estimate it.
+    pub fn set_target(&mut self, id: AnchorId, target: Vec3) -> Result<(), SolverError> {
+        let point = self.get(id).ok_or(SolverError::UnknownAnchor)?.point;
+        check_vector(point as usize, target, "anchor target").map_err(|_| {
+            SolverError::InvalidAnchor {
+                point,
+                what: "target",
+            }
+        })?;
+        if let Some(a) = self.slots[id.slot as usize].anchor.as_mut() {
+            a.target = target;
+        }
+        Ok(())
+    }
+
+    /// Replaces an anchor's settings (on one of `points` points).
+    pub fn set(&mut self, id: AnchorId, anchor: Anchor, points: usize) -> Result<(), SolverError> {
+        self.get(id).ok_or(SolverError::UnknownAnchor)?;
+        self.check(&anchor, points)?;
+        self.slots[id.slot as usize].anchor = Some(anchor);
+        self.revision = next_revision();
+        Ok(())
+    }
+
+    /// Removes every anchor (their ids become invalid).
+    pub fn clear(&mut self) {
+        let ids: Vec<AnchorId> = self.iter().map(|(id, _)| id).collect();
+        for id in ids {
+            self.remove(id);
+        }
+    }
+}
+
+/// A force on each point from outside the surface (contacts, wind, a game's own systems),
+/// added after the surface's own forces. It stays until changed or cleared.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct ExternalForces {
+    pub(crate) f: Soa3,
+    /// Whether any force may be non-zero (all zero skips the pass).
+    pub(crate) any: bool,
+}
+
+impl ExternalForces {
+    /// No force on `points` points.
+    pub fn zeros(points: usize) -> Self {
+        Self {
+            f: Soa3::zeros(points),
+            any: false,
+        }
+    }
+
+    /// Number of points.
+    pub fn len(&self) -> usize {
+        self.f.len()
+    }
+
+    /// Whether there are no points.
+    pub fn is_empty(&self) -> bool {
+        self.f.len() == 0
+    }
+
+    /// The force on point `i`.
+    pub fn get(&self, i: usize) -> Vec3 {
+        self.f.get(i)
+    }
+
+    /// Sets the force on point `i` (finite and within [`STATE_LIMIT`]).
+    pub fn set(&mut self, i: usize, f: Vec3) -> Result<(), SolverError> {
+        check_index(i, self.len())?;
+        check_vector(i, f, "external force")?;
+        self.f.set(i, f);
+        self.any = true;
+        Ok(())
+    }
+
+    /// Adds `f` to the force on point `i`; the sum must stay finite and within
+    /// [`STATE_LIMIT`] (otherwise nothing changes).
+    pub fn add(&mut self, i: usize, f: Vec3) -> Result<(), SolverError> {
+        check_index(i, self.len())?;
+        self.set(i, self.f.get(i) + f)
+    }
+
+    /// Adds `f(position)` to every point's force (a field: wind, a magnet), given each
+    /// point's position. A non-finite result is refused and nothing changes.
+    pub fn add_field(
+        &mut self,
+        points: &PointState,
+        mut f: impl FnMut(usize, Vec3) -> Vec3,
+    ) -> Result<(), SolverError> {
+        if points.len() != self.len() {
+            return Err(SolverError::PointCountMismatch {
+                what: "external forces",
+                expected: points.len(),
+                found: self.len(),
+            });
+        }
+        let added: Vec<Vec3> = (0..self.len())
+            .map(|i| self.f.get(i) + f(i, points.position(i)))
+            .collect();
+        for (i, v) in added.iter().enumerate() {
+            check_vector(i, *v, "external force")?;
+        }
+        for (i, v) in added.into_iter().enumerate() {
+            self.f.set(i, v);
+        }
+        self.any = true;
+        Ok(())
+    }
+
+    /// Sets every force to zero.
+    pub fn clear(&mut self) {
+        if self.any {
+            self.f.fill(Vec3::ZERO);
+            self.any = false;
+        }
+    }
+}
+
+/// Gas inside a closed surface: the over-pressure ΔP = κ·(V₀/V − 1) of an ideal gas kept at
+/// one temperature (κ is the outside pressure) pushes every triangle of the surface outward
+/// with ΔP times its area, a third to each corner. A shell of springs alone keeps any
+/// shape its springs' lengths allow — a dent pushed through stays, as a ping-pong ball's
+/// does — while a closed surface with pressure springs back, like a ball.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Pressure {
+    triangles: Vec<[u32; 3]>,
+    /// Where volumes are measured from (the rest centroid), for precision.
+    origin: Vec3,
+    rest_volume: f64,
+    /// κ, force per unit area.
+    pub stiffness: f32,
+    pub(crate) revision: u64,
+}
+
+impl Pressure {
+    /// Gas of stiffness κ (finite, not negative) filling the closed surface of
+    /// `triangles` (counter-clockwise seen from outside) over points at rest at `rest`.
+    pub fn new(
+        triangles: Vec<[u32; 3]>,
+        rest: &PointState,
+        stiffness: f32,
+    ) -> Result<Self, SolverError> {
+        if !non_negative(stiffness) {
+            return Err(SolverError::InvalidConfig(
+                "the pressure stiffness must be finite and not negative",
+            ));
+        }
+        let n = rest.len();
+        if let Some(t) = triangles
+            .iter()
+            .find(|t| t.iter().any(|&i| i as usize >= n))
+        {
+            return Err(SolverError::PointOutOfRange {
+                index: t.iter().copied().max().unwrap_or(0) as usize,
+                points: n,
+            });
+        }
+        let origin = if n == 0 {
+            Vec3::ZERO
+        } else {
+            rest.iter_positions().sum::<Vec3>() / n as f32
+        };
+        let mut pressure = Self {
+            triangles,
+            origin,
+            rest_volume: 0.0,
+            stiffness,
+            revision: next_revision(),
+        };
+        pressure.rest_volume = pressure.volume(rest);
+        if !(pressure.rest_volume > 0.0 && pressure.rest_volume.is_finite()) {
+            return Err(SolverError::InvalidConfig(
+                "pressure needs a closed surface enclosing a positive volume",
+            ));
+        }
+        Ok(pressure)
+    }
+
+    /// The enclosed volume at `points`.
+    pub fn volume(&self, points: &PointState) -> f64 {
+        let o = self.origin.as_dvec3();
+        let at = |i: u32| points.position(i as usize).as_dvec3() - o;
+        self.triangles
+            .iter()
+            .map(|&[a, b, c]| at(a).dot(at(b).cross(at(c))))
+            .sum::<f64>()
+            / 6.0
+    }
+
+    /// The enclosed volume at rest.
+    pub fn rest_volume(&self) -> f64 {
+        self.rest_volume
+    }
+
+    /// Number of triangles.
+    pub fn triangle_count(&self) -> usize {
+        self.triangles.len()
+    }
+
+    /// The over-pressure at `points`.
+    pub fn over_pressure(&self, points: &PointState) -> f64 {
+        let v = self.volume(points).max(self.rest_volume * 1e-3);
+        f64::from(self.stiffness) * (self.rest_volume / v - 1.0)
+    }
+
+    /// Adds the pressure forces at `points` to `f`.
+    pub(crate) fn accumulate(&self, points: &PointState, f: &mut Soa3) {
+        if self.stiffness == 0.0 {
+            return;
+        }
+        let dp = self.over_pressure(points) as f32;
+        for &[a, b, c] in &self.triangles {
+            let (a, b, c) = (a as usize, b as usize, c as usize);
+            let (xa, xb, xc) = (points.position(a), points.position(b), points.position(c));
+            // A third of ΔP times the area vector ½(b − a) × (c − a).
+            let share = (xb - xa).cross(xc - xa) * (dp / 6.0);
+            for i in [a, b, c] {
+                f.set(i, f.get(i) + share);
+            }
+        }
+    }
+
+    /// The gas's potential energy at `points`: κ·(V − V₀) − κ·V₀·ln(V/V₀).
+    pub fn energy(&self, points: &PointState) -> f64 {
+        let (v, v0) = (self.volume(points), self.rest_volume);
+        let k = f64::from(self.stiffness);
+        if v <= 0.0 {
+            return f64::INFINITY;
+        }
+        k * (v - v0) - k * v0 * (v / v0).ln()
+    }
+}

@@ -1,0 +1,556 @@
+//! The [`Stepper`]: what advances a surface's [`PointState`] in time, in two phases that a
+//! caller may run apart (the Bevy layer runs them in two system sets):
+//!
+//! 1. [`Stepper::accumulate_forces`]: the surface's own forces at the current state —
+//!    gravity (eq 4), viscous drag, springs (eq 2–3), anchors (eq 5), gas pressure;
+//! 2. [`Stepper::advance`]: adds the [`ExternalForces`] and integrates one step, split into
+//!    sub-steps when an explicit scheme needs them (each later sub-step computes its forces
+//!    anew).
+//!
+//! [`Solver::step`](super::Solver::step) runs both, so a surface stepped through its parts
+//! and one stepped as a [`Solver`](super::Solver) give the same bits.
+
+use glam::Vec3;
+
+use super::implicit;
+use super::parts::{
+    Anchors, ExternalForces, Masses, PointState, Pressure, Soa3, Springs, non_negative, sane,
+};
+use super::{
+    DampingModel, Diagnostics, Energy, Integrator, SolverConfig, SolverError, Stability,
+    StepReport, SubstepPolicy,
+};
+
+/// The parts of a surface a step reads but does not change.
+#[derive(Debug, Clone, Copy)]
+pub struct Model<'a> {
+    /// Masses and pins.
+    pub masses: &'a Masses,
+    /// Springs.
+    pub springs: &'a Springs,
+    /// Anchor springs.
+    pub anchors: &'a Anchors,
+    /// Gas inside a closed surface, if any (its stiffness is not part of the stable-step
+    /// estimate: keep it well below the springs').
+    pub pressure: Option<&'a Pressure>,
+}
+
+impl Model<'_> {
+    /// Revisions of the parts the stable step depends on.
+    fn revisions(&self) -> [u64; 3] {
+        [
+            self.masses.revision,
+            self.springs.revision,
+            self.anchors.revision,
+        ]
+    }
+
+    fn len(&self) -> usize {
+        self.masses.len()
+    }
+}
+
+/// Settings, force buffers, scratch space and running totals of one surface's time
+/// stepping.
+#[derive(Debug, Clone, Default)]
+pub struct Stepper {
+    config: SolverConfig,
+    /// Force accumulators: spring forces on `a` ends plus every per-point force, and spring
+    /// forces on `b` ends (see `springs`).
+    pub(crate) fa: Soa3,
+    pub(crate) fb: Soa3,
+    /// Whether `fa` and `fb` hold the forces at the current state (phase 1 ran).
+    forces_ready: bool,
+    /// Where explicit steps write the new state (see [`Stepper::integrate`]).
+    spare_x: Soa3,
+    spare_v: Soa3,
+    /// The state before the step, when the guard needs a copy.
+    snapshot: Option<(Soa3, Soa3)>,
+    pub(crate) implicit: implicit::Scratch,
+    /// The stability estimate and the revisions of the parts it was made for.
+    stability: Option<(Stability, [u64; 3])>,
+    diagnostics: Diagnostics,
+}
+
+impl Stepper {
+    /// A stepper with `config` for `points` points.
+    pub fn new(config: SolverConfig, points: usize) -> Result<Self, SolverError> {
+        check_config(&config)?;
+        Ok(Self {
+            config,
+            fa: Soa3::zeros(points),
+            fb: Soa3::zeros(points),
+            spare_x: Soa3::zeros(points),
+            spare_v: Soa3::zeros(points),
+            ..Self::default()
+        })
+    }
+
+    /// The settings.
+    pub fn config(&self) -> &SolverConfig {
+        &self.config
+    }
+
+    /// Replaces the settings.
+    pub fn set_config(&mut self, config: SolverConfig) -> Result<(), SolverError> {
+        check_config(&config)?;
+        if config.integrator != self.config.integrator {
+            self.implicit = implicit::Scratch::default();
+        }
+        self.config = config;
+        self.stability = None;
+        Ok(())
+    }
+
+    /// Running totals.
+    pub fn diagnostics(&self) -> &Diagnostics {
+        &self.diagnostics
+    }
+
+    /// The stable-step estimate for the model (cached until one of its parts changes).
+    pub fn stability(&mut self, model: Model<'_>) -> Stability {
+        let revisions = model.revisions();
+        match self.stability {
+            Some((s, r)) if r == revisions => s,
+            _ => {
+                let s = estimate_stability(&self.config, model);
+                self.stability = Some((s, revisions));
+                s
+            }
+        }
+    }
+
+    fn check_sizes(&self, points: &PointState, model: Model<'_>) -> Result<(), SolverError> {
+        let n = points.len();
+        for (what, found) in [("masses", model.len()), ("force buffers", self.fa.len())] {
+            if found != n {
+                return Err(SolverError::PointCountMismatch {
+                    what,
+                    expected: n,
+                    found,
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// Phase 1: the surface's own forces at the current state — m·(g − μ·v), springs and
+    /// anchors — into the force buffers. [`Stepper::advance`] adds the external forces and
+    /// integrates.
+    pub fn accumulate_forces(
+        &mut self,
+        points: &PointState,
+        model: Model<'_>,
+    ) -> Result<(), SolverError> {
+        self.check_sizes(points, model)?;
+        self.compute_internal(points, model);
+        self.forces_ready = true;
+        Ok(())
+    }
+
+    fn compute_internal(&mut self, points: &PointState, model: Model<'_>) {
+        let g = self.config.gravity;
+        let mu = self.config.drag;
+        let (v, m) = (&points.v, &model.masses.mass);
+        base_forces(&mut self.fa.x, &v.x, m, g.x, mu);
+        base_forces(&mut self.fa.y, &v.y, m, g.y, mu);
+        base_forces(&mut self.fa.z, &v.z, m, g.z, mu);
+        self.fb.fill(Vec3::ZERO);
+        let layout = &model.springs.layout;
+        match self.config.damping_model {
+            DampingModel::Relative => {
+                layout.accumulate::<false>(&points.x, v, &mut self.fa, &mut self.fb);
+            }
+            DampingModel::Axial => {
+                layout.accumulate::<true>(&points.x, v, &mut self.fa, &mut self.fb);
+            }
+        }
+        for a in model.anchors.live() {
+            let i = a.point as usize;
+            let f = a.stiffness * (a.target - points.x.get(i)) - a.damping * points.v.get(i);
+            self.fa.set(i, self.fa.get(i) + f);
+        }
+        if let Some(pressure) = model.pressure {
+            pressure.accumulate(points, &mut self.fa);
+        }
+    }
+
+    fn add_external(&mut self, external: &ExternalForces) {
+        if !external.any {
+            return;
+        }
+        let e = &external.f;
+        for (f, e) in [
+            (&mut self.fa.x, &e.x),
+            (&mut self.fa.y, &e.y),
+            (&mut self.fa.z, &e.z),
+        ] {
+            for (f, e) in f.iter_mut().zip(e) {
+                *f += e;
+            }
+        }
+    }
+
+    /// Sub-steps for a step of `dt` under the current policy.
+    fn plan(&mut self, model: Model<'_>, dt: f32) -> Result<(u32, bool), SolverError> {
+        let integrator = self.config.integrator;
+        if !integrator.is_explicit() || self.config.substeps == SubstepPolicy::Unchecked {
+            return Ok((1, false));
+        }
+        let stable = self.stability(model).dt(integrator) * self.config.stability_margin;
+        if dt <= stable {
+            return Ok((1, false));
+        }
+        let refuse = Err(SolverError::StepTooLarge {
+            dt,
+            stable_dt: stable,
+            integrator,
+        });
+        match self.config.substeps {
+            SubstepPolicy::Refuse => refuse,
+            // No number of sub-steps helps: say so instead of burning them.
+            SubstepPolicy::Auto { .. } if stable == 0.0 => refuse,
+            SubstepPolicy::Auto { max_substeps } => {
+                let needed = f64::from(dt) / f64::from(stable);
+                if needed > f64::from(max_substeps) {
+                    Ok((max_substeps, true))
+                } else {
+                    Ok((needed.ceil() as u32, false))
+                }
+            }
+            SubstepPolicy::Unchecked => Ok((1, false)),
+        }
+    }
+
+    /// Phase 2: adds the external forces to the forces of phase 1 (computing those first
+    /// if phase 1 has not run since the last step) and advances the state by `dt` seconds.
+    pub fn advance(
+        &mut self,
+        points: &mut PointState,
+        model: Model<'_>,
+        external: &ExternalForces,
+        dt: f32,
+    ) -> Result<StepReport, SolverError> {
+        if !(dt.is_finite() && dt >= 0.0) {
+            return Err(SolverError::InvalidTimeStep(dt));
+        }
+        self.check_sizes(points, model)?;
+        if external.len() != points.len() {
+            return Err(SolverError::PointCountMismatch {
+                what: "external forces",
+                expected: points.len(),
+                found: external.len(),
+            });
+        }
+        let fresh = std::mem::take(&mut self.forces_ready);
+        if dt == 0.0 || points.is_empty() {
+            let report = StepReport {
+                cg_converged: true,
+                finite: true,
+                ..StepReport::default()
+            };
+            self.diagnostics.last = report;
+            return Ok(report);
+        }
+        let (substeps, limited) = self.plan(model, dt)?;
+        let integrator = self.config.integrator;
+        // The guard's way back: an explicit single step writes the new state beside the old
+        // one and swaps, so the old state is still there (no copy); anything else copies.
+        let swap_restores = integrator.is_explicit() && substeps == 1;
+        if self.config.guard && !swap_restores {
+            let (x, v) = self
+                .snapshot
+                .get_or_insert_with(|| (points.x.clone(), points.v.clone()));
+            x.copy_from(&points.x);
+            v.copy_from(&points.v);
+        }
+        let h = dt / substeps as f32;
+        let mut report = StepReport {
+            substeps,
+            substep_dt: h,
+            limited,
+            cg_converged: true,
+            ..StepReport::default()
+        };
+        let mut insane = 0;
+        for substep in 0..substeps {
+            if substep > 0 || !fresh {
+                self.compute_internal(points, model);
+            }
+            self.add_external(external);
+            insane = match integrator {
+                Integrator::ExplicitEuler => self.integrate::<false>(points, model.masses, h),
+                Integrator::SymplecticEuler => self.integrate::<true>(points, model.masses, h),
+                Integrator::ImplicitEuler => {
+                    let cg = self.implicit_step(points, model, h);
+                    report.cg_iterations += cg.iterations;
+                    report.cg_converged &= cg.converged;
+                    points.x.count_insane() + points.v.count_insane()
+                }
+            };
+        }
+        report.finite = insane == 0;
+        if !report.finite && self.config.guard {
+            if swap_restores {
+                std::mem::swap(&mut points.x, &mut self.spare_x);
+                std::mem::swap(&mut points.v, &mut self.spare_v);
+            } else if let Some((x, v)) = &self.snapshot {
+                points.x.copy_from(x);
+                points.v.copy_from(v);
+            }
+            self.implicit.reset_warm_start();
+            report.recovered = true;
+            report.finite = true;
+        }
+        let d = &mut self.diagnostics;
+        d.steps += 1;
+        d.substeps += u64::from(substeps);
+        d.limited_steps += u64::from(limited);
+        d.cg_iterations += u64::from(report.cg_iterations);
+        d.cg_unconverged += u64::from(!report.cg_converged);
+        d.guard_trips += u64::from(report.recovered);
+        d.time += f64::from(dt);
+        d.last = report;
+        Ok(report)
+    }
+
+    /// One explicit step of length `h` from the forces in `fa` and `fb`: symplectic Euler
+    /// (v += a·h, then x += v·h) or forward Euler (x += v·h and v += a·h from the same old
+    /// state). The new state is written to the spare buffers, which then change places with
+    /// the current ones. Returns the number of insane components in the new state.
+    fn integrate<const SYMPLECTIC: bool>(
+        &mut self,
+        points: &mut PointState,
+        masses: &Masses,
+        h: f32,
+    ) -> usize {
+        let inv = &masses.inv_mass;
+        let mut insane = 0;
+        let (x, v) = (&points.x, &points.v);
+        for (x, v, fa, fb, x_out, v_out) in [
+            (
+                &x.x,
+                &v.x,
+                &self.fa.x,
+                &self.fb.x,
+                &mut self.spare_x.x,
+                &mut self.spare_v.x,
+            ),
+            (
+                &x.y,
+                &v.y,
+                &self.fa.y,
+                &self.fb.y,
+                &mut self.spare_x.y,
+                &mut self.spare_v.y,
+            ),
+            (
+                &x.z,
+                &v.z,
+                &self.fa.z,
+                &self.fb.z,
+                &mut self.spare_x.z,
+                &mut self.spare_v.z,
+            ),
+        ] {
+            insane += pulp::Arch::new().dispatch(IntegrateAxis::<SYMPLECTIC> {
+                x,
+                v,
+                fa,
+                fb,
+                inv,
+                h,
+                x_out,
+                v_out,
+            });
+        }
+        std::mem::swap(&mut points.x, &mut self.spare_x);
+        std::mem::swap(&mut points.v, &mut self.spare_v);
+        insane as usize
+    }
+
+    /// Kinetic, spring, gravitational and anchor energy of `points`.
+    pub fn energy(&self, points: &PointState, model: Model<'_>) -> Energy {
+        let mut e = Energy {
+            spring: model.springs.energy(points),
+            ..Energy::default()
+        };
+        let g = self.config.gravity.as_dvec3();
+        let masses = model.masses;
+        for i in 0..points.len() {
+            if masses.is_pinned(i) {
+                continue;
+            }
+            let m = f64::from(masses.mass(i));
+            e.kinetic += 0.5 * m * points.velocity(i).as_dvec3().length_squared();
+            e.gravity -= m * g.dot(points.position(i).as_dvec3());
+        }
+        for a in model.anchors.live() {
+            let d = (a.target - points.position(a.point as usize)).as_dvec3();
+            e.anchor += 0.5 * f64::from(a.stiffness) * d.length_squared();
+        }
+        if let Some(pressure) = model.pressure {
+            e.pressure = pressure.energy(points);
+        }
+        e
+    }
+}
+
+/// The stable-step estimate (see the module docs of `solver`).
+fn estimate_stability(config: &SolverConfig, model: Model<'_>) -> Stability {
+    let n = model.len();
+    let (masses, layout) = (model.masses, &model.springs.layout);
+    let mut stiff = vec![0.0f64; n];
+    let mut damp = vec![0.0f64; n];
+    let mut ratio = f64::INFINITY;
+    let free = |i: usize| !masses.is_pinned(i);
+    for s in 0..layout.len() {
+        let (a, b) = (layout.a[s] as usize, layout.b[s] as usize);
+        let (k, kd) = (f64::from(layout.k[s]), f64::from(layout.kd[s]));
+        for i in [a, b] {
+            stiff[i] += 2.0 * k;
+            damp[i] += 2.0 * kd;
+        }
+        if k > 0.0 && (free(a) || free(b)) {
+            ratio = ratio.min(kd / k);
+        }
+    }
+    for a in model.anchors.live() {
+        let i = a.point as usize;
+        stiff[i] += f64::from(a.stiffness);
+        damp[i] += f64::from(a.damping);
+        if a.stiffness > 0.0 && free(i) {
+            ratio = ratio.min(f64::from(a.damping) / f64::from(a.stiffness));
+        }
+    }
+    let any_stiffness = stiff.iter().any(|&s| s > 0.0);
+    if config.damping_model == DampingModel::Axial && any_stiffness {
+        // Axial damping leaves motion across a spring undamped, and a stretched spring
+        // resists that motion with k·(1 − l⁰/|l|): for explicit Euler those modes are
+        // undamped oscillations, which only drag keeps stable.
+        ratio = 0.0;
+    }
+    let (mut omega2, mut gamma) = (0.0f64, 0.0f64);
+    for i in 0..n {
+        let inv = f64::from(masses.inv_mass[i]);
+        omega2 = omega2.max(stiff[i] * inv);
+        gamma = gamma.max(damp[i] * inv);
+    }
+    let drag = f64::from(config.drag);
+    gamma += drag;
+    let symplectic = if omega2 == 0.0 && gamma == 0.0 {
+        f64::INFINITY
+    } else {
+        4.0 / (gamma + (gamma * gamma + 4.0 * omega2).sqrt())
+    };
+    let oscillation = if omega2 > 0.0 {
+        ratio.min(f64::MAX) + drag / omega2
+    } else {
+        f64::INFINITY
+    };
+    let overdamping = if gamma > 0.0 {
+        2.0 / gamma
+    } else {
+        f64::INFINITY
+    };
+    Stability {
+        omega2_max: omega2 as f32,
+        gamma_max: gamma as f32,
+        damping_ratio_min: ratio as f32,
+        symplectic_dt: symplectic as f32,
+        explicit_dt: oscillation.min(overdamping) as f32,
+    }
+}
+
+/// [`integrate_axis`]'s arguments, handed to [`pulp`] so that the loop is compiled for the
+/// widest vector unit the processor has (see the spring kernel's `Accumulate`).
+struct IntegrateAxis<'a, const SYMPLECTIC: bool> {
+    x: &'a [f32],
+    v: &'a [f32],
+    fa: &'a [f32],
+    fb: &'a [f32],
+    inv: &'a [f32],
+    h: f32,
+    x_out: &'a mut [f32],
+    v_out: &'a mut [f32],
+}
+
+impl<const SYMPLECTIC: bool> pulp::WithSimd for IntegrateAxis<'_, SYMPLECTIC> {
+    type Output = u32;
+
+    #[inline(always)]
+    fn with_simd<S: pulp::Simd>(self, _simd: S) -> u32 {
+        integrate_axis::<SYMPLECTIC>(
+            self.x, self.v, self.fa, self.fb, self.inv, self.h, self.x_out, self.v_out,
+        )
+    }
+}
+
+/// One axis of an explicit step (see [`Stepper::integrate`]); counts new components that
+/// are not finite or beyond the state limit (branch-free, so the loop vectorises).
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn integrate_axis<const SYMPLECTIC: bool>(
+    x: &[f32],
+    v: &[f32],
+    fa: &[f32],
+    fb: &[f32],
+    inv: &[f32],
+    h: f32,
+    x_out: &mut [f32],
+    v_out: &mut [f32],
+) -> u32 {
+    let n = x.len();
+    let (v, fa, fb, inv) = (&v[..n], &fa[..n], &fb[..n], &inv[..n]);
+    let (x_out, v_out) = (&mut x_out[..n], &mut v_out[..n]);
+    let mut insane = 0u32;
+    for i in 0..n {
+        let dv = inv[i] * (fa[i] + fb[i]) * h;
+        let vn = v[i] + dv;
+        let xn = x[i] + if SYMPLECTIC { vn } else { v[i] } * h;
+        v_out[i] = vn;
+        x_out[i] = xn;
+        insane += u32::from(!sane(xn)) + u32::from(!sane(vn));
+    }
+    insane
+}
+
+/// One axis of m·(g − μ·v).
+fn base_forces(fa: &mut [f32], v: &[f32], m: &[f32], g: f32, mu: f32) {
+    let n = fa.len();
+    let (v, m) = (&v[..n], &m[..n]);
+    for i in 0..n {
+        fa[i] = m[i] * (g - mu * v[i]);
+    }
+}
+
+/// Checks a solver's settings.
+pub(crate) fn check_config(c: &SolverConfig) -> Result<(), SolverError> {
+    if !c.gravity.is_finite() {
+        return Err(SolverError::InvalidConfig("gravity must be finite"));
+    }
+    if !non_negative(c.drag) {
+        return Err(SolverError::InvalidConfig(
+            "drag must be finite and not negative",
+        ));
+    }
+    if !(c.stability_margin > 0.0 && c.stability_margin <= 1.0) {
+        return Err(SolverError::InvalidConfig(
+            "the stability margin must be in (0, 1]",
+        ));
+    }
+    if !(c.cg_tolerance > 0.0 && c.cg_tolerance < 1.0) {
+        return Err(SolverError::InvalidConfig(
+            "the CG tolerance must be in (0, 1)",
+        ));
+    }
+    if c.cg_max_iterations == 0 {
+        return Err(SolverError::InvalidConfig(
+            "CG needs at least one iteration",
+        ));
+    }
+    if c.substeps == (SubstepPolicy::Auto { max_substeps: 0 }) {
+        return Err(SolverError::InvalidConfig("at least one sub-step per step"));
+    }
+    Ok(())
+}
