@@ -12,8 +12,11 @@
 //!   estimates and a guard), the displacement transfer back to the dense surface with
 //!   normals and resampling (§5), and scene files that run all of it. It builds and tests
 //!   without Bevy (`--no-default-features`).
-//! * `plugin` (feature `plugin`, on by default) — the Bevy 0.19 layer: ECS components and the
-//!   fixed-tick system sets that later stages fill.
+//! * `plugin` (feature `plugin`, on by default) — the Bevy 0.19 layer: a surface is one
+//!   entity whose components hold its arrays; it is prepared in the background and
+//!   simulated on the fixed tick in the chained sets force accumulation → Euler stepping →
+//!   displacement transfer; clouds and scenes load through the asset server; the `render`
+//!   feature draws it as lit surfels.
 //!
 //! Cargo features: `plugin` (default, headless Bevy), `render` (Bevy's renderer), `egui`
 //! (a bevy_egui panel), `rapier` (bevy_rapier3d contacts), `cli` (the `point-springs` tool).
@@ -42,17 +45,26 @@ pub mod prelude {
     pub use crate::core::io::{CloudFormat, LoadError, PlyEncoding, read_cloud, write_ply};
     pub use crate::core::network::{NetworkConfig, SpringNetwork, build_network};
     pub use crate::core::normals::{NormalSource, ensure_normals, estimate_normals};
+    pub use crate::core::pipeline::{
+        DenseCloud, NormalsSpec, PrepareError, PreparedSurface, SurfaceConfig, prepare_surface,
+    };
+    pub use crate::core::resample::ResampleConfig;
     pub use crate::core::scene::{Scene, SceneError, SceneRun};
     pub use crate::core::simplify::{SimplifyConfig, simplify, simplify_cloud};
     pub use crate::core::solver::{
         Anchor, AnchorId, DampingModel, Integrator, Solver, SolverConfig, SolverError,
         SpringMaterial, SpringSpec, SubstepPolicy,
     };
-    pub use crate::core::transfer::{Transfer, TransferConfig, TransferError};
+    pub use crate::core::transfer::{NormalUpdate, Transfer, TransferConfig, TransferError};
     pub use crate::core::{Aabb, PointCloud};
 
     #[cfg(feature = "render")]
-    pub use crate::plugin::render::{SurfelRender, SurfelRenderPlugin};
+    pub use crate::plugin::render::{SpringGizmos, SurfelRender, SurfelRenderPlugin};
     #[cfg(feature = "plugin")]
-    pub use crate::plugin::{DenseSurface, PointSpringsPlugin, PointSpringsSystems, SurfaceStatus};
+    pub use crate::plugin::{
+        CloudAsset, DeformableSurface, DenseSurface, PointSpringsPlugin, PointSpringsSystems,
+        PreparationProgress, SceneAsset, SceneTimeline, SimulationPoints, SurfaceAnchors,
+        SurfaceForces, SurfaceMasses, SurfaceMaterial, SurfaceNetwork, SurfaceSettings,
+        SurfaceSprings, SurfaceStatus, SurfaceStepper, TransferTiming,
+    };
 }

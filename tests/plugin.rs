@@ -1,26 +1,84 @@
-//! The headless plugin: `MinimalPlugins` + `PointSpringsPlugin`, one `update()` = one known step.
+//! The headless plugin: `MinimalPlugins` + `AssetPlugin` + `PointSpringsPlugin`, with
+//! `TimeUpdateStrategy::ManualDuration` so that one `update()` is one fixed tick.
 
+use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use bevy::prelude::*;
 use bevy::time::TimeUpdateStrategy;
-use bevy_point_springs::core::{PointCloud, shapes};
+use bevy_point_springs::core::pipeline::SurfaceConfig;
+use bevy_point_springs::core::scene::Scene;
+use bevy_point_springs::core::shapes;
+use bevy_point_springs::core::simplify::SimplifyConfig;
 use bevy_point_springs::prelude::*;
 
-/// Fixed tick used by the tests.
+/// Fixed tick of the tests that do not follow a scene.
 const TICK: Duration = Duration::from_micros(15_625);
 
-/// Upper bound on waiting for background preparation (a hang guard, not a speed check).
-const SETTLE_TIMEOUT: Duration = Duration::from_secs(60);
+/// Upper bound on waiting for background work (a hang guard, not a speed check).
+const SETTLE_TIMEOUT: Duration = Duration::from_secs(120);
 
-fn create_app() -> App {
+fn assets_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("assets")
+}
+
+/// A headless app reading files from `assets` and ticking `tick` per update.
+fn create_app(assets: &Path, tick: Duration) -> App {
     let mut app = App::new();
-    app.add_plugins((MinimalPlugins, PointSpringsPlugin::default()))
-        .insert_resource(TimeUpdateStrategy::ManualDuration(TICK))
-        .insert_resource(Time::<Fixed>::from_duration(TICK));
+    app.add_plugins((
+        MinimalPlugins,
+        AssetPlugin {
+            file_path: assets.display().to_string(),
+            ..default()
+        },
+        PointSpringsPlugin::default(),
+    ))
+    .insert_resource(TimeUpdateStrategy::ManualDuration(tick))
+    .insert_resource(Time::<Fixed>::from_duration(tick));
+    app.finish();
+    app.cleanup();
     // The first update only starts the clock.
     app.update();
     app
+}
+
+fn status(app: &App, e: Entity) -> SurfaceStatus {
+    app.world().get::<SurfaceStatus>(e).cloned().unwrap()
+}
+
+/// Updates until every surface has left loading and preparation behind.
+fn settle(app: &mut App, surfaces: &[Entity]) {
+    let deadline = Instant::now() + SETTLE_TIMEOUT;
+    let busy = |app: &App| {
+        surfaces.iter().any(|&e| {
+            matches!(
+                app.world().get::<SurfaceStatus>(e),
+                Some(SurfaceStatus::Pending | SurfaceStatus::Loading | SurfaceStatus::Preparing)
+            )
+        })
+    };
+    while busy(app) {
+        assert!(Instant::now() < deadline, "surfaces did not settle");
+        app.update();
+        std::thread::sleep(Duration::from_millis(1));
+    }
+}
+
+/// A floating surface (no gravity) from a cloud in memory.
+fn floating(points: usize, sim: usize) -> DeformableSurface {
+    let config = SurfaceConfig {
+        simplify: SimplifyConfig::target(sim),
+        solver: SolverConfig {
+            gravity: Vec3::ZERO,
+            ..default()
+        },
+        ..default()
+    };
+    DeformableSurface::cloud(shapes::fibonacci_sphere(points, 1.0), config)
+}
+
+fn centroid(points: &SimulationPoints) -> Vec3 {
+    points.iter_positions().sum::<Vec3>() / points.len() as f32
 }
 
 #[derive(Resource, Default)]
@@ -28,95 +86,330 @@ struct Order(Vec<&'static str>);
 
 #[test]
 fn sets_run_in_order_on_the_fixed_tick() {
-    let mut app = create_app();
+    let mut app = create_app(&assets_dir(), TICK);
     app.init_resource::<Order>();
     let mark = |name: &'static str| move |mut order: ResMut<Order>| order.0.push(name);
     app.add_systems(
         FixedUpdate,
         (
-            mark("writeback").in_set(PointSpringsSystems::Writeback),
+            mark("transfer").in_set(PointSpringsSystems::Transfer),
             mark("integrate").in_set(PointSpringsSystems::Integrate),
             mark("forces").in_set(PointSpringsSystems::Forces),
-            mark("prepare").in_set(PointSpringsSystems::Prepare),
         ),
+    )
+    .add_systems(
+        PreUpdate,
+        mark("prepare").in_set(PointSpringsSystems::Prepare),
     );
     for _ in 0..3 {
         app.update();
     }
     let order = &app.world().resource::<Order>().0;
-    assert!(!order.is_empty(), "the fixed tick never ran");
-    assert_eq!(order.len() % 4, 0);
-    for tick in order.chunks(4) {
-        assert_eq!(tick, ["prepare", "forces", "integrate", "writeback"]);
+    assert_eq!(order.len(), 12, "{order:?}");
+    for frame in order.chunks(4) {
+        assert_eq!(frame, ["prepare", "forces", "integrate", "transfer"]);
     }
 }
 
-#[test]
-fn surfaces_get_oriented_normals_and_bad_ones_fail_cleanly() {
-    let mut app = create_app();
-    let sphere = shapes::fibonacci_sphere(2000, 1.0);
-    let bare = PointCloud::new(sphere.positions().to_vec(), None).unwrap();
-    let good = app.world_mut().spawn(DenseSurface::new(bare)).id();
-    let tiny = PointCloud::new(vec![Vec3::ZERO, Vec3::X], None).unwrap();
-    let bad = app.world_mut().spawn(DenseSurface::new(tiny)).id();
-    // Normals are estimated on the async compute pool: tick until both surfaces settle.
-    let settled = |app: &App| {
-        [good, bad].iter().all(|&e| {
-            !matches!(
-                app.world().get::<SurfaceStatus>(e),
-                Some(SurfaceStatus::Pending | SurfaceStatus::Preparing)
-            )
-        })
+/// Runs a shipped scene in the ECS until its last step; returns the dense surface and the
+/// scene.
+fn run_scene_in_ecs(name: &str) -> (DenseCloud, Scene, App, Entity) {
+    let (scene, _) = Scene::load(&assets_dir().join("scenes").join(name)).unwrap();
+    let tick = Duration::from_secs_f64(f64::from(scene.dt));
+    let mut app = create_app(&assets_dir(), tick);
+    let handle = app
+        .world()
+        .resource::<AssetServer>()
+        .load(format!("scenes/{name}"));
+    let entity = app.world_mut().spawn(DeformableSurface::scene(handle)).id();
+    settle(&mut app, &[entity]);
+    assert_eq!(status(&app, entity), SurfaceStatus::Ready, "{name}");
+    // The tick the plugin steps by is the scene's step, to the bit.
+    let fixed = app
+        .world()
+        .resource::<Time<Fixed>>()
+        .timestep()
+        .as_secs_f32();
+    assert_eq!(fixed.to_bits(), scene.dt.to_bits());
+    let steps = |app: &App| {
+        app.world()
+            .get::<SurfaceStepper>(entity)
+            .unwrap()
+            .diagnostics()
+            .steps
     };
-    let deadline = Instant::now() + SETTLE_TIMEOUT;
-    while !settled(&app) && Instant::now() < deadline {
+    while steps(&app) < scene.steps as u64 {
         app.update();
-        std::thread::sleep(Duration::from_millis(1));
     }
-    let world = app.world();
-    assert_eq!(
-        world.get::<SurfaceStatus>(good),
-        Some(&SurfaceStatus::Ready {
-            normals_estimated: true
-        })
+    assert_eq!(steps(&app), scene.steps as u64, "one step per tick");
+    assert!(app.world().get::<SceneTimeline>(entity).unwrap().finished());
+    let dense = app.world().get::<DenseSurface>(entity).unwrap().0.clone();
+    (dense, scene, app, entity)
+}
+
+fn bits(v: &[Vec3]) -> Vec<[u32; 3]> {
+    v.iter().map(|p| p.to_array().map(f32::to_bits)).collect()
+}
+
+/// The ECS run of a scene gives, bit for bit, the dense surface of the core's headless run
+/// (the one `point-springs run` writes); returns the largest displacement at the end.
+fn ecs_matches_the_headless_run(name: &str) -> f32 {
+    let (dense, scene, _, _) = run_scene_in_ecs(name);
+    let mut run = scene.prepare(&assets_dir().join("scenes")).unwrap();
+    run.run(&mut |_| {}).unwrap();
+    let deformed = run.deformed().unwrap();
+    assert_eq!(dense.len(), deformed.cloud.len(), "{name}: resampled alike");
+    assert!(
+        bits(dense.positions()) == bits(deformed.cloud.positions()),
+        "{name}: positions differ"
     );
-    let cloud = &world.get::<DenseSurface>(good).unwrap().cloud;
-    let outward = cloud
-        .positions()
-        .iter()
-        .zip(cloud.normals().unwrap())
-        .all(|(p, n)| p.dot(*n) > 0.9);
-    assert!(outward);
-    match world.get::<SurfaceStatus>(bad) {
-        Some(SurfaceStatus::Failed(message)) => assert!(message.contains("at least")),
-        other => panic!("expected a failure, got {other:?}"),
+    assert!(
+        bits(dense.normals()) == bits(deformed.cloud.normals().unwrap()),
+        "{name}: normals differ"
+    );
+    dense.max_displacement()
+}
+
+#[test]
+fn sphere_poke_runs_bit_for_bit_like_the_headless_run() {
+    // Poked, let go, round again.
+    let left = ecs_matches_the_headless_run("sphere_poke.ron");
+    assert!(left < 0.05, "dent left {left}");
+}
+
+#[test]
+fn hat_runs_bit_for_bit_like_the_headless_run() {
+    let crown = ecs_matches_the_headless_run("hat.ron");
+    assert!(crown > 0.7, "crown {crown}");
+}
+
+/// The same, against the PLY file the command-line tool writes.
+#[cfg(feature = "cli")]
+#[test]
+fn hat_matches_the_file_point_springs_run_writes() {
+    let (dense, ..) = run_scene_in_ecs("hat.ron");
+    let out = std::env::temp_dir().join(format!("bps-plugin-hat-{}.ply", std::process::id()));
+    let status = std::process::Command::new(env!("CARGO_BIN_EXE_point-springs"))
+        .args(["run", "assets/scenes/hat.ron", "-o"])
+        .arg(&out)
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .output()
+        .unwrap();
+    assert!(status.status.success(), "{status:?}");
+    let written = read_cloud(&out, None).unwrap();
+    assert!(bits(dense.positions()) == bits(written.positions()));
+    assert!(bits(dense.normals()) == bits(written.normals().unwrap()));
+}
+
+/// Wind from +X on every point of surfaces marked `Windy`.
+#[derive(Component)]
+struct Windy;
+
+fn wind(mut surfaces: Query<&mut SurfaceForces, With<Windy>>) {
+    for mut forces in &mut surfaces {
+        for i in 0..forces.len() {
+            forces.add(i, Vec3::X * 0.05).unwrap();
+        }
     }
 }
 
 #[test]
-fn surfaces_with_normals_are_ready_on_the_first_tick() {
-    let mut app = create_app();
-    let sphere = shapes::fibonacci_sphere(500, 2.0);
-    let entity = app
-        .world_mut()
-        .spawn(DenseSurface::new(sphere.clone()))
-        .id();
-    // One fixed tick runs per update with ManualDuration == timestep.
-    app.update();
-    assert_eq!(
-        app.world().get::<SurfaceStatus>(entity),
-        Some(&SurfaceStatus::Ready {
-            normals_estimated: false
-        })
+fn a_game_system_in_the_force_set_moves_the_surface() {
+    let mut app = create_app(&assets_dir(), TICK);
+    app.add_systems(FixedUpdate, wind.in_set(PointSpringsSystems::Forces));
+    let blown = app.world_mut().spawn((floating(1500, 150), Windy)).id();
+    let still = app.world_mut().spawn(floating(1500, 150)).id();
+    settle(&mut app, &[blown, still]);
+    let start = |e| centroid(app.world().get::<SimulationPoints>(e).unwrap());
+    let (b0, s0) = (start(blown), start(still));
+    let still_revision = app.world().get::<DenseSurface>(still).unwrap().revision();
+    for _ in 0..30 {
+        app.update();
+    }
+    let now = |e| centroid(app.world().get::<SimulationPoints>(e).unwrap());
+    let moved = now(blown) - b0;
+    assert!(
+        moved.x > 1e-3 && moved.y.abs() < 1e-4,
+        "blown surface moved {moved}"
     );
-    // The cloud's own normals are kept (normalised), not re-estimated.
-    let cloud = &app.world().get::<DenseSurface>(entity).unwrap().cloud;
-    assert!(cloud.positions() == sphere.positions());
-    let kept = cloud
-        .normals()
-        .unwrap()
+    assert_eq!(now(still), s0, "the surface without wind stays put");
+    // Nothing moved it, so its dense surface was not transferred again.
+    let revision = app.world().get::<DenseSurface>(still).unwrap().revision();
+    assert_eq!(revision, still_revision);
+    // The game's forces are cleared after each tick.
+    let forces = app.world().get::<SurfaceForces>(blown).unwrap();
+    assert_eq!(forces.get(0), Vec3::ZERO);
+    // The dense surface followed the wind.
+    let dense = app.world().get::<DenseSurface>(blown).unwrap();
+    let shift = dense.positions()[0] - dense.transfer().rest_positions()[0];
+    assert!(
+        (shift.x - moved.x).abs() < 0.2 * moved.x,
+        "{shift} vs {moved}"
+    );
+}
+
+#[test]
+fn ten_surfaces_run_at_once() {
+    let mut app = create_app(&assets_dir(), TICK);
+    let surfaces: Vec<Entity> = (0..10)
+        .map(|i| {
+            let config = SurfaceConfig {
+                simplify: SimplifyConfig::target(100 + 10 * i),
+                ..default()
+            };
+            let cloud = shapes::fibonacci_sphere(800 + 50 * i, 1.0);
+            app.world_mut()
+                .spawn(DeformableSurface::cloud(cloud, config))
+                .id()
+        })
+        .collect();
+    settle(&mut app, &surfaces);
+    let starts: Vec<Vec3> = surfaces
         .iter()
-        .zip(sphere.normals().unwrap())
-        .all(|(a, b)| a.dot(*b) > 0.999_999);
-    assert!(kept);
+        .map(|&e| centroid(app.world().get::<SimulationPoints>(e).unwrap()))
+        .collect();
+    for _ in 0..20 {
+        app.update();
+    }
+    for (i, (&e, start)) in surfaces.iter().zip(starts).enumerate() {
+        assert_eq!(status(&app, e), SurfaceStatus::Ready, "surface {i}");
+        let points = app.world().get::<SimulationPoints>(e).unwrap();
+        assert_eq!(points.len(), 100 + 10 * i);
+        // Falling under gravity, all of them.
+        let fall = start.y - centroid(points).y;
+        assert!(fall > 0.01 && fall.is_finite(), "surface {i} fell {fall}");
+    }
+}
+
+#[test]
+fn despawning_while_preparing_or_simulating_is_clean() {
+    let mut app = create_app(&assets_dir(), TICK);
+    // Big enough that its preparation is still under way a few frames later.
+    let big = app.world_mut().spawn(floating(60_000, 2000)).id();
+    let small = app.world_mut().spawn(floating(1000, 100)).id();
+    app.update();
+    app.update();
+    assert_eq!(status(&app, big), SurfaceStatus::Preparing);
+    let progress = *app.world().get::<PreparationProgress>(big).unwrap();
+    assert!((0.0..=1.0).contains(&progress.fraction), "{progress:?}");
+    app.world_mut().despawn(big);
+    settle(&mut app, &[small]);
+    assert_eq!(status(&app, small), SurfaceStatus::Ready);
+    // While simulating.
+    app.update();
+    app.world_mut().despawn(small);
+    for _ in 0..5 {
+        app.update();
+    }
+    // A surface spawned afterwards is prepared and runs as usual.
+    let later = app.world_mut().spawn(floating(1000, 100)).id();
+    settle(&mut app, &[later]);
+    assert_eq!(status(&app, later), SurfaceStatus::Ready);
+}
+
+#[test]
+fn bad_inputs_fail_their_surface_only() {
+    let dir = std::env::temp_dir().join(format!("bps-plugin-bad-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let write = |name: &str, text: &str| std::fs::write(dir.join(name), text).unwrap();
+    write(
+        "missing.ron",
+        r#"(cloud: "nowhere.ply", simplify: (target: Some(50)), dt: 0.01, steps: 10)"#,
+    );
+    write("nan.xyz", "0 0 0\n1 0 0\nnan 1 0\n0 1 1\n");
+    write("broken.ron", "(cloud: \"nan.xyz\",\n  steps: ten)");
+    let mut app = create_app(&dir, TICK);
+    let server = app.world().resource::<AssetServer>().clone();
+    let missing = app
+        .world_mut()
+        .spawn(DeformableSurface::scene(server.load("missing.ron")))
+        .id();
+    let broken = app
+        .world_mut()
+        .spawn(DeformableSurface::scene(server.load("broken.ron")))
+        .id();
+    let nan = app
+        .world_mut()
+        .spawn(DeformableSurface::cloud_asset(
+            server.load("nan.xyz"),
+            SurfaceConfig::default(),
+        ))
+        .id();
+    let two = PointCloud::new(vec![Vec3::ZERO, Vec3::X], None).unwrap();
+    let two = app
+        .world_mut()
+        .spawn(DeformableSurface::cloud(two, SurfaceConfig::default()))
+        .id();
+    // Collinear points: no tangent plane, nothing §3 can simplify.
+    let line: Vec<Vec3> = (0..200).map(|i| Vec3::X * i as f32 * 0.01).collect();
+    let normals = vec![Vec3::Y; line.len()];
+    let line = PointCloud::new(line, Some(normals)).unwrap();
+    let line = app
+        .world_mut()
+        .spawn(DeformableSurface::cloud(line, SurfaceConfig::default()))
+        .id();
+    let good = app.world_mut().spawn(floating(1000, 100)).id();
+    let all = [missing, broken, nan, two, line, good];
+    settle(&mut app, &all);
+    let expect = [
+        (missing, "nowhere.ply"),
+        (broken, "broken.ron"),
+        (nan, "not finite"),
+        (two, "at least"),
+        (line, "surface"),
+    ];
+    for (entity, needle) in expect {
+        match status(&app, entity) {
+            SurfaceStatus::Failed(message) => {
+                assert!(message.contains(needle), "{needle}: {message}");
+            }
+            other => panic!("{needle}: expected a failure, got {other:?}"),
+        }
+    }
+    // The good one runs, and the app keeps going.
+    assert_eq!(status(&app, good), SurfaceStatus::Ready);
+    for _ in 0..5 {
+        app.update();
+    }
+    assert_eq!(status(&app, good), SurfaceStatus::Ready);
+}
+
+#[test]
+fn transfer_once_per_frame_when_asked() {
+    // Three ticks per update.
+    let mut app = create_app(&assets_dir(), TICK);
+    app.insert_resource(TimeUpdateStrategy::ManualDuration(TICK * 3));
+    let every_tick = app.world_mut().spawn(floating(1200, 120)).id();
+    let per_frame = app
+        .world_mut()
+        .spawn((
+            floating(1200, 120),
+            SurfaceSettings {
+                transfer: TransferTiming::PerFrame,
+                ..default()
+            },
+        ))
+        .id();
+    app.add_systems(FixedUpdate, wind.in_set(PointSpringsSystems::Forces));
+    app.world_mut().entity_mut(every_tick).insert(Windy);
+    app.world_mut().entity_mut(per_frame).insert(Windy);
+    settle(&mut app, &[every_tick, per_frame]);
+    let revision = |app: &App, e| app.world().get::<DenseSurface>(e).unwrap().revision();
+    let (a0, b0) = (revision(&app, every_tick), revision(&app, per_frame));
+    for _ in 0..4 {
+        app.update();
+    }
+    assert_eq!(
+        revision(&app, every_tick) - a0,
+        12,
+        "three transfers per update"
+    );
+    assert_eq!(revision(&app, per_frame) - b0, 4, "one transfer per update");
+    // After the frame, both dense surfaces follow their simulation's latest state exactly:
+    // asked to follow it again, there is nothing to do.
+    for e in [every_tick, per_frame] {
+        let mut dense = app.world().get::<DenseSurface>(e).unwrap().0.clone();
+        let points = app.world().get::<SimulationPoints>(e).unwrap();
+        assert!(!dense.follow(points).unwrap());
+    }
 }

@@ -1,27 +1,49 @@
-//! Helpers shared by the examples: command-line options, a camera framing the scene, and the
-//! `--screenshot PATH --frames N` mode used to check examples headless (under Xvfb).
+//! Helpers shared by the examples: command-line options, an orbit camera, keys for the
+//! simulation, and the `--screenshot PATH --frames N` mode used to check examples headless
+//! (under Xvfb).
+//!
+//! With `--frames N` time advances exactly one fixed tick (1/60 s) per rendered frame, and
+//! frames are counted from the moment every surface is prepared, so frame N shows the same
+//! moment of the simulation on every machine however slow its renderer or its preparation.
 
 use std::path::PathBuf;
+use std::time::Duration;
 
+use bevy::input::mouse::{AccumulatedMouseMotion, AccumulatedMouseScroll, MouseScrollUnit};
 use bevy::prelude::*;
 use bevy::render::view::screenshot::{Screenshot, ScreenshotCaptured, save_to_disk};
-use bevy::window::WindowResolution;
+use bevy::time::TimeUpdateStrategy;
+use bevy::window::{PrimaryWindow, WindowResolution};
+use bevy_point_springs::prelude::*;
 
 /// Window size of every example.
 pub const WINDOW_SIZE: (u32, u32) = (1280, 720);
 
-/// Frames rendered before the screenshot when `--screenshot` is given without `--frames`.
+/// Frames rendered (after preparation) before the screenshot when `--screenshot` is given
+/// without `--frames`.
 pub const DEFAULT_SCREENSHOT_FRAMES: u32 = 60;
+
+/// The fixed tick of the examples: the shipped scenes' step.
+pub const TICK_HZ: f64 = 60.0;
+
+/// Radians of orbit per pixel of mouse motion.
+const ORBIT_SPEED: f32 = 0.006;
+
+/// Fraction of the distance zoomed per scroll line.
+const ZOOM_STEP: f32 = 0.1;
 
 /// Options every example understands.
 #[derive(Resource, Debug, Clone, Default)]
 pub struct DemoArgs {
-    /// A point-cloud file to use instead of the example's default.
+    /// A file to use instead of the example's default.
     pub file: Option<PathBuf>,
     /// Save a screenshot of the window here, then exit.
     pub screenshot: Option<PathBuf>,
-    /// Exit after this many frames (with `--screenshot`: take it at that frame).
+    /// Exit after this many frames once every surface is prepared (with `--screenshot`:
+    /// take it at that frame); time advances one tick per frame.
     pub frames: Option<u32>,
+    /// Window size, pixels (default [`WINDOW_SIZE`]).
+    pub size: Option<(u32, u32)>,
 }
 
 impl DemoArgs {
@@ -33,8 +55,16 @@ impl DemoArgs {
             match arg.as_str() {
                 "--screenshot" => args.screenshot = it.next().map(PathBuf::from),
                 "--frames" => args.frames = it.next().and_then(|n| n.parse().ok()),
+                "--size" => {
+                    args.size = it.next().and_then(|s| {
+                        let (w, h) = s.split_once('x')?;
+                        Some((w.parse().ok()?, h.parse().ok()?))
+                    });
+                }
                 "-h" | "--help" => {
-                    println!("options: [FILE] [--screenshot PATH.png] [--frames N]");
+                    println!("options: [FILE] [--screenshot PATH.png] [--frames N] [--size WxH]");
+                    println!("mouse: right-drag orbits, wheel zooms");
+                    println!("keys: space pauses, G cycles the spring gizmos, R restarts");
                     std::process::exit(0);
                 }
                 other => args.file = Some(PathBuf::from(other)),
@@ -42,9 +72,15 @@ impl DemoArgs {
         }
         args
     }
+
+    /// Whether the run is scripted (fixed time per frame, then exit).
+    pub fn scripted(&self) -> bool {
+        self.frames.is_some() || self.screenshot.is_some()
+    }
 }
 
-/// Window, screenshot-and-exit handling, lighting. Add it instead of `DefaultPlugins`.
+/// Window, lighting, the plugin with drawing, the orbit camera, keys, and the
+/// screenshot-and-exit mode. Add it instead of `DefaultPlugins`.
 pub struct DemoPlugin {
     /// Window title.
     pub title: &'static str,
@@ -54,60 +90,258 @@ pub struct DemoPlugin {
 
 impl Plugin for DemoPlugin {
     fn build(&self, app: &mut App) {
-        app.add_plugins(DefaultPlugins.set(WindowPlugin {
-            primary_window: Some(Window {
-                title: self.title.into(),
-                resolution: WindowResolution::from(WINDOW_SIZE),
+        app.add_plugins((
+            DefaultPlugins.set(WindowPlugin {
+                primary_window: Some(Window {
+                    title: self.title.into(),
+                    resolution: WindowResolution::from(self.args.size.unwrap_or(WINDOW_SIZE)),
+                    ..default()
+                }),
                 ..default()
             }),
-            ..default()
-        }))
+            PointSpringsPlugin::default(),
+            SurfelRenderPlugin,
+        ))
         .insert_resource(self.args.clone())
+        .insert_resource(Time::<Fixed>::from_hz(TICK_HZ))
         .insert_resource(ClearColor(Color::srgb(0.11, 0.12, 0.14)))
         .insert_resource(GlobalAmbientLight {
             brightness: 300.0,
             ..default()
         })
-        .add_systems(Update, screenshot_and_exit);
+        .init_resource::<FramesSinceReady>()
+        .add_systems(
+            Update,
+            (orbit_camera, keys, show_status, screenshot_and_exit),
+        );
+        if self.args.scripted() {
+            // Exactly one tick per frame.
+            app.insert_resource(TimeUpdateStrategy::ManualDuration(Duration::from_secs_f64(
+                1.0 / TICK_HZ,
+            )));
+        }
     }
 }
 
-/// Spawns a camera looking at a box of `center` and `diagonal`, and a light over its shoulder.
-pub fn spawn_camera_and_light(commands: &mut Commands, center: Vec3, diagonal: f32) {
-    let eye = center + Vec3::new(0.55, 0.45, 1.0).normalize() * diagonal * 1.1;
-    commands.spawn((
-        Camera3d::default(),
-        Transform::from_translation(eye).looking_at(center, Vec3::Y),
-    ));
+/// A camera orbiting `target`: right-drag turns it, the wheel zooms.
+#[derive(Component, Debug, Clone, Copy)]
+pub struct OrbitCamera {
+    /// The point looked at.
+    pub target: Vec3,
+    /// Distance from it.
+    pub distance: f32,
+    /// Turn about the vertical, radians.
+    pub yaw: f32,
+    /// Elevation, radians.
+    pub pitch: f32,
+}
+
+impl OrbitCamera {
+    /// Where the camera is for this orbit.
+    pub fn transform(&self) -> Transform {
+        let rotation = Quat::from_euler(EulerRot::YXZ, self.yaw, -self.pitch, 0.0);
+        let eye = self.target + rotation * Vec3::Z * self.distance;
+        Transform::from_translation(eye).looking_at(self.target, Vec3::Y)
+    }
+}
+
+/// Spawns an orbit camera looking at `target` from `distance` (yaw and pitch in radians),
+/// and a light over its shoulder.
+pub fn spawn_camera_and_light(
+    commands: &mut Commands,
+    target: Vec3,
+    distance: f32,
+    yaw: f32,
+    pitch: f32,
+) {
+    let orbit = OrbitCamera {
+        target,
+        distance,
+        yaw,
+        pitch,
+    };
+    let transform = orbit.transform();
+    commands.spawn((Camera3d::default(), transform, orbit));
+    let eye = transform.translation;
     commands.spawn((
         DirectionalLight {
             illuminance: 8_000.0,
             ..default()
         },
-        Transform::from_translation(eye + Vec3::new(diagonal, diagonal, 0.0))
-            .looking_at(center, Vec3::Y),
+        Transform::from_translation(eye + Vec3::new(distance, distance, 0.0))
+            .looking_at(target, Vec3::Y),
     ));
 }
+
+fn orbit_camera(
+    buttons: Res<ButtonInput<MouseButton>>,
+    motion: Res<AccumulatedMouseMotion>,
+    scroll: Res<AccumulatedMouseScroll>,
+    mut cameras: Query<(&mut Transform, &mut OrbitCamera)>,
+) {
+    let turn = if buttons.pressed(MouseButton::Right) {
+        motion.delta * ORBIT_SPEED
+    } else {
+        Vec2::ZERO
+    };
+    let lines = match scroll.unit {
+        MouseScrollUnit::Line => scroll.delta.y,
+        MouseScrollUnit::Pixel => scroll.delta.y / 40.0,
+    };
+    if turn == Vec2::ZERO && lines == 0.0 {
+        return;
+    }
+    for (mut transform, mut orbit) in &mut cameras {
+        orbit.yaw -= turn.x;
+        orbit.pitch = (orbit.pitch + turn.y).clamp(-1.5, 1.5);
+        orbit.distance *= (1.0 - ZOOM_STEP).powf(lines);
+        *transform = orbit.transform();
+    }
+}
+
+/// Space pauses, G cycles the gizmos (none, points, points and springs), R prepares every
+/// surface again (back to rest, the scene from its start).
+fn keys(
+    keyboard: Res<ButtonInput<KeyCode>>,
+    mut gizmos: ResMut<SpringGizmos>,
+    mut surfaces: Query<(&mut SurfaceSettings, &mut SurfaceStatus)>,
+) {
+    if keyboard.just_pressed(KeyCode::KeyG) {
+        *gizmos = match (gizmos.points, gizmos.stretch) {
+            (false, _) => SpringGizmos {
+                points: true,
+                ..default()
+            },
+            (true, false) => SpringGizmos {
+                points: true,
+                stretch: true,
+                bend: true,
+            },
+            (true, true) => SpringGizmos::default(),
+        };
+    }
+    for (mut settings, mut status) in &mut surfaces {
+        if keyboard.just_pressed(KeyCode::Space) {
+            settings.paused = !settings.paused;
+        }
+        if keyboard.just_pressed(KeyCode::KeyR) {
+            *status = SurfaceStatus::Pending;
+        }
+    }
+}
+
+/// What the window title shows of a surface.
+type SurfaceReport = (
+    &'static SurfaceStatus,
+    Option<&'static PreparationProgress>,
+    Option<&'static SceneTimeline>,
+    Option<&'static DenseSurface>,
+);
+
+/// The window title says what the surfaces are doing.
+fn show_status(
+    args: Res<DemoArgs>,
+    mut windows: Query<&mut Window, With<PrimaryWindow>>,
+    surfaces: Query<SurfaceReport>,
+    mut last: Local<String>,
+) {
+    let mut parts = Vec::new();
+    for (status, progress, timeline, dense) in &surfaces {
+        parts.push(match (status, progress) {
+            (SurfaceStatus::Preparing, Some(p)) => {
+                format!("preparing: {} {:.0}%", p.stage, 100.0 * p.fraction)
+            }
+            (SurfaceStatus::Ready, _) => {
+                let step = timeline.map_or(String::new(), |t| {
+                    format!("step {} of {}, ", t.step(), t.steps())
+                });
+                let points = dense.map_or(0, |d| d.len());
+                format!("{step}{points} surfels")
+            }
+            (SurfaceStatus::Failed(message), _) => format!("failed: {message}"),
+            (other, _) => format!("{other:?}").to_lowercase(),
+        });
+    }
+    let text = parts.join(" | ");
+    if *last != text {
+        if let Ok(mut window) = windows.single_mut() {
+            let title = window
+                .title
+                .split(" — ")
+                .take(2)
+                .collect::<Vec<_>>()
+                .join(" — ");
+            window.title = format!("{title} — {text}");
+        }
+        if args.scripted() {
+            info!("{text}");
+        }
+        *last = text;
+    }
+}
+
+/// A screenshot with less of it differing from the background than this counts as blank.
+const MIN_DRAWN_FRACTION: f32 = 0.02;
+
+/// The fraction of an image's pixels that differ from its corner pixel (the background).
+fn drawn_fraction(image: &Image) -> f32 {
+    let Some(data) = image.data.as_deref() else {
+        return 0.0;
+    };
+    let pixels: Vec<&[u8]> = data.chunks_exact(4).collect();
+    let Some(&corner) = pixels.first() else {
+        return 0.0;
+    };
+    let drawn = pixels.iter().filter(|&&p| p != corner).count();
+    drawn as f32 / pixels.len() as f32
+}
+
+/// Frames rendered since every surface was prepared.
+#[derive(Resource, Debug, Default)]
+pub struct FramesSinceReady(pub Option<u32>);
 
 fn screenshot_and_exit(
     mut commands: Commands,
     args: Res<DemoArgs>,
-    mut frame: Local<u32>,
+    mut frames: ResMut<FramesSinceReady>,
+    surfaces: Query<&SurfaceStatus>,
     mut exit: MessageWriter<AppExit>,
 ) {
-    *frame += 1;
+    let prepared = !surfaces.is_empty()
+        && surfaces
+            .iter()
+            .all(|s| matches!(s, SurfaceStatus::Ready | SurfaceStatus::Failed(_)));
+    let frame = match (&mut frames.0, prepared) {
+        (Some(n), _) => {
+            *n += 1;
+            *n
+        }
+        (None, true) => {
+            // The frame whose tick took the first step.
+            frames.0 = Some(1);
+            1
+        }
+        (None, false) => return,
+    };
     match (&args.screenshot, args.frames) {
-        (Some(path), frames) if *frame == frames.unwrap_or(DEFAULT_SCREENSHOT_FRAMES) => {
+        (Some(path), frames) if frame == frames.unwrap_or(DEFAULT_SCREENSHOT_FRAMES) => {
             commands
                 .spawn(Screenshot::primary_window())
                 .observe(save_to_disk(path.clone()))
                 .observe(
-                    |_: On<ScreenshotCaptured>, mut exit: MessageWriter<AppExit>| {
-                        exit.write(AppExit::Success);
+                    |captured: On<ScreenshotCaptured>, mut exit: MessageWriter<AppExit>| {
+                        let drawn = drawn_fraction(&captured);
+                        if drawn < MIN_DRAWN_FRACTION {
+                            error!("the screenshot is blank: {:.2} % drawn", 100.0 * drawn);
+                            exit.write(AppExit::error());
+                        } else {
+                            info!("{:.1} % of the screenshot drawn", 100.0 * drawn);
+                            exit.write(AppExit::Success);
+                        }
                     },
                 );
         }
-        (None, Some(frames)) if *frame >= frames => {
+        (None, Some(frames)) if frame >= frames => {
             exit.write(AppExit::Success);
         }
         _ => {}

@@ -1,14 +1,13 @@
-//! Surfel geometry: each point drawn as a small disc facing along its normal.
+//! Surfels: each point drawn as a small disc facing along its normal.
 //!
-//! The Bevy layer (`plugin::render`, feature `render`) turns [`SurfelGeometry`] into one mesh
-//! per surface; keeping the geometry here lets it be tested without the renderer.
+//! The Bevy layer (`plugin::render`, feature `render`) keeps one record per dense point in
+//! a GPU storage buffer, rewritten every frame, from which its vertex shader builds the
+//! discs; the records are packed here ([`pack_surfels`]) so that the packing is tested and
+//! timed without the renderer.
 
 use glam::Vec3;
 
 use crate::core::knn::KnnIndex;
-
-/// Rim vertices of each surfel disc.
-pub const SURFEL_SIDES: usize = 6;
 
 /// Neighbours whose farthest sets a surfel's size.
 pub const SURFEL_NEIGHBOURS: usize = 6;
@@ -19,46 +18,22 @@ pub const SURFEL_NEIGHBOURS: usize = 6;
 /// the surface reads as closed.
 pub const DEFAULT_SURFEL_SCALE: f32 = 0.75;
 
-/// Triangle-list geometry of a set of surfels.
-#[derive(Debug, Clone, Default, PartialEq)]
-pub struct SurfelGeometry {
-    /// Vertex positions: per surfel its centre, then its rim.
-    pub positions: Vec<[f32; 3]>,
-    /// Vertex normals: the surfel's normal at each of its vertices.
-    pub normals: Vec<[f32; 3]>,
-    /// Triangle indices, counter-clockwise seen from the normal's side.
-    pub indices: Vec<u32>,
-}
+/// Bytes of one surfel record: position (3 × f32), radius (f32), normal (3 × f32), padding.
+pub const SURFEL_BYTES: usize = 32;
 
-/// One [`SURFEL_SIDES`]-gon per point, of the point's radius, in the plane perpendicular to its
-/// normal (zero normals are replaced by +Z).
-pub fn surfel_geometry(positions: &[Vec3], normals: &[Vec3], radii: &[f32]) -> SurfelGeometry {
-    let per_point = SURFEL_SIDES + 1;
-    let mut out = SurfelGeometry {
-        positions: Vec::with_capacity(positions.len() * per_point),
-        normals: Vec::with_capacity(positions.len() * per_point),
-        indices: Vec::with_capacity(positions.len() * SURFEL_SIDES * 3),
-    };
-    let rim: Vec<(f32, f32)> = (0..SURFEL_SIDES)
-        .map(|s| (s as f32 * std::f32::consts::TAU / SURFEL_SIDES as f32).sin_cos())
-        .collect();
-    for ((&p, &n), &radius) in positions.iter().zip(normals).zip(radii) {
-        let n = n.normalize_or(Vec3::Z);
-        let (t1, t2) = n.any_orthonormal_pair();
-        let base = out.positions.len() as u32;
-        out.positions.push(p.to_array());
-        for &(s, c) in &rim {
-            out.positions
-                .push((p + (t1 * c + t2 * s) * radius).to_array());
-        }
-        out.normals
-            .extend(std::iter::repeat_n(n.to_array(), per_point));
-        for s in 0..SURFEL_SIDES as u32 {
-            let next = (s + 1) % SURFEL_SIDES as u32;
-            out.indices.extend([base, base + 1 + s, base + 1 + next]);
+/// Appends one record per point to `out` (little-endian `f32`, the GPU's order): position,
+/// radius, normal, a zero. Stops at the shortest of the three inputs.
+pub fn pack_surfels(positions: &[Vec3], normals: &[Vec3], radii: &[f32], out: &mut Vec<u8>) {
+    let n = positions.len().min(normals.len()).min(radii.len());
+    let start = out.len();
+    out.resize(start + n * SURFEL_BYTES, 0);
+    let records = out[start..].chunks_exact_mut(SURFEL_BYTES);
+    for (((p, q), &r), record) in positions.iter().zip(normals).zip(radii).zip(records) {
+        let values = [p.x, p.y, p.z, r, q.x, q.y, q.z, 0.0];
+        for (bytes, v) in record.chunks_exact_mut(4).zip(values) {
+            bytes.copy_from_slice(&v.to_le_bytes());
         }
     }
-    out
 }
 
 /// Each point's surfel radius: `scale` times the distance to its [`SURFEL_NEIGHBOURS`]-th
@@ -78,21 +53,17 @@ mod tests {
     use super::*;
 
     #[test]
-    fn surfels_face_their_normals() {
-        let g = surfel_geometry(&[Vec3::ZERO, Vec3::X], &[Vec3::Y, Vec3::Z], &[0.5, 0.5]);
-        assert_eq!(g.positions.len(), 2 * (SURFEL_SIDES + 1));
-        assert_eq!(g.indices.len(), 2 * SURFEL_SIDES * 3);
-        // The first disc lies in the plane y = 0, its rim 0.5 from its centre.
-        for v in &g.positions[1..=SURFEL_SIDES] {
-            assert!(v[1].abs() < 1e-6);
-            assert!((Vec3::from_array(*v).length() - 0.5).abs() < 1e-5);
-        }
-        // Triangles wind counter-clockwise seen from the normal.
-        for tri in g.indices.chunks(3) {
-            let [a, b, c] = [0, 1, 2].map(|k| Vec3::from_array(g.positions[tri[k] as usize]));
-            let n = Vec3::from_array(g.normals[tri[0] as usize]);
-            assert!((b - a).cross(c - a).dot(n) > 0.0);
-        }
+    fn records_hold_position_radius_and_normal() {
+        let mut out = vec![7u8];
+        let positions = [Vec3::new(1.0, 2.0, 3.0), Vec3::X];
+        pack_surfels(&positions, &[Vec3::Z, Vec3::Y], &[0.5, 0.25], &mut out);
+        assert_eq!(out.len(), 1 + 2 * SURFEL_BYTES);
+        let floats: Vec<f32> = out[1..]
+            .chunks_exact(4)
+            .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+            .collect();
+        assert_eq!(&floats[..8], &[1.0, 2.0, 3.0, 0.5, 0.0, 0.0, 1.0, 0.0]);
+        assert_eq!(&floats[8..], &[1.0, 0.0, 0.0, 0.25, 0.0, 1.0, 0.0, 0.0]);
     }
 
     #[test]

@@ -1,187 +1,142 @@
-//! The Bevy layer: gathers ECS data, calls [`crate::core`], schedules.
+//! The Bevy layer: deformable surfaces as ECS data, simulated on the fixed tick.
 //!
-//! One entity per deformable surface; components hold whole arrays, not one entity per point.
-//! The simulation runs on Bevy's fixed tick in the chained sets of [`PointSpringsSystems`]:
-//! `Prepare → Forces → Integrate → Writeback`. Today `Prepare` gives new surfaces oriented
-//! normals — estimated on Bevy's async compute pool, so a large cloud never stalls a frame —
-//! and the later sets are configured (so user systems can be ordered against them) and will be
-//! filled by the spring network and the solver.
+//! Add [`PointSpringsPlugin`] and spawn a [`DeformableSurface`]. The plugin prepares it in
+//! the background ([`prepare`]), then every tick of its schedule (by default
+//! [`FixedUpdate`]) runs the chained sets of [`PointSpringsSystems`]:
+//! `Forces → Integrate → Transfer` ([`simulate`]). Each surface is one entity whose
+//! components hold whole arrays ([`components`]); drawing comes with the `render` feature.
+//!
+//! ```
+//! use bevy::prelude::*;
+//! use bevy_point_springs::prelude::*;
+//! use bevy_point_springs::core::shapes::fibonacci_sphere;
+//!
+//! /// Wind from +X, added to every simulation point each tick.
+//! fn wind(mut surfaces: Query<&mut SurfaceForces>) {
+//!     for mut forces in &mut surfaces {
+//!         for i in 0..forces.len() {
+//!             forces.add(i, Vec3::X * 0.01).unwrap();
+//!         }
+//!     }
+//! }
+//!
+//! let mut app = App::new();
+//! app.add_plugins((MinimalPlugins, PointSpringsPlugin::default()))
+//!     .add_systems(FixedUpdate, wind.in_set(PointSpringsSystems::Forces));
+//! let config = SurfaceConfig::default();
+//! app.world_mut()
+//!     .spawn(DeformableSurface::cloud(fibonacci_sphere(1500, 1.0), config));
+//! app.update();
+//! ```
 
+pub mod assets;
+pub mod components;
+pub mod prepare;
 #[cfg(feature = "render")]
 pub mod render;
+pub mod simulate;
 
+use bevy::ecs::schedule::{InternedScheduleLabel, ScheduleLabel};
 use bevy::prelude::*;
-use bevy::tasks::{AsyncComputeTaskPool, Task, block_on, poll_once};
 
-use crate::core::PointCloud;
-use crate::core::normals::{
-    DEFAULT_NORMAL_K, NormalSource, NormalsError, OrientationReport, ensure_normals,
-    estimate_normals,
+pub use assets::{CloudAsset, CloudLoader, SceneAsset, SceneLoader};
+pub use components::{
+    DeformableSurface, DenseSurface, PreparationProgress, SceneTimeline, SimulationPoints,
+    SurfaceAnchors, SurfaceForces, SurfaceMasses, SurfaceMaterial, SurfaceNetwork, SurfacePressure,
+    SurfaceSettings, SurfaceSource, SurfaceSprings, SurfaceStatus, SurfaceStepper, TransferTiming,
 };
+pub use prepare::PreparationPool;
 
-/// The plugin. Add it to an [`App`] next to `DefaultPlugins` or `MinimalPlugins`.
-#[derive(Debug, Clone, Copy)]
+/// The plugin. Add it next to `DefaultPlugins` (or `MinimalPlugins`, plus `AssetPlugin`
+/// for files).
+#[derive(Debug, Clone)]
 pub struct PointSpringsPlugin {
-    /// Neighbours used to estimate normals for surfaces whose cloud has none.
-    pub normal_k: usize,
+    schedule: InternedScheduleLabel,
+}
+
+impl PointSpringsPlugin {
+    /// The simulation runs in `schedule` (one step per run, of that run's `Time` delta);
+    /// use [`FixedUpdate`] (the default) unless the game steps its physics elsewhere.
+    pub fn new(schedule: impl ScheduleLabel) -> Self {
+        Self {
+            schedule: schedule.intern(),
+        }
+    }
 }
 
 impl Default for PointSpringsPlugin {
     fn default() -> Self {
-        Self {
-            normal_k: DEFAULT_NORMAL_K,
-        }
+        Self::new(FixedUpdate)
     }
 }
 
-/// The plugin's settings, as a resource.
-#[derive(Resource, Debug, Clone, Copy, Reflect)]
-#[reflect(Resource, Debug)]
-pub struct PointSpringsConfig {
-    /// Neighbours used to estimate normals for surfaces whose cloud has none.
-    pub normal_k: usize,
-}
-
-/// The chained system sets of one simulation tick, run in [`FixedUpdate`].
+/// The system sets of the plugin. `Forces`, `Integrate` and `Transfer` run chained in the
+/// plugin's schedule (one step each run); `Prepare` runs in [`PreUpdate`], and `Transfer`
+/// also in [`PostUpdate`] for surfaces that follow once per frame.
 #[derive(SystemSet, Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum PointSpringsSystems {
-    /// New or changed surfaces are made ready (normals now; simplification and springs later).
+    /// New surfaces are started and finished preparations collected (in [`PreUpdate`]).
     Prepare,
-    /// Spring, damping, gravity, anchor, drag and contact forces.
+    /// Force accumulation: scene timelines, then each surface's springs (eq 2–3), gravity
+    /// (eq 4), anchors and pins (eq 5), drag and gas pressure. Put systems that add to
+    /// [`SurfaceForces`] here.
     Forces,
-    /// Time integration.
+    /// Euler stepping (explicit, symplectic or implicit, sub-stepped where needed), with
+    /// the game's forces added.
     Integrate,
-    /// Results copied where other systems read them.
-    Writeback,
-}
-
-/// A dense point-sampled surface: the cloud as loaded (or generated).
-///
-/// Spawn one per surface; [`SurfaceStatus`] comes with it and tells when it is ready.
-#[derive(Component, Debug, Clone, Default, Reflect)]
-#[reflect(Component, Debug, Default)]
-#[require(SurfaceStatus)]
-pub struct DenseSurface {
-    /// The points and normals. Missing normals are estimated in the background once the
-    /// plugin sees the surface (see [`SurfaceStatus`]).
-    #[reflect(ignore)]
-    pub cloud: PointCloud,
-}
-
-impl DenseSurface {
-    /// Wraps a cloud.
-    pub fn new(cloud: PointCloud) -> Self {
-        Self { cloud }
-    }
-}
-
-/// Where a [`DenseSurface`] is in its preparation. Set it back to `Pending` after replacing
-/// the cloud to prepare the surface again.
-#[derive(Component, Debug, Clone, Default, PartialEq, Eq, Reflect)]
-#[reflect(Component, Debug, Default)]
-pub enum SurfaceStatus {
-    /// Not prepared yet.
-    #[default]
-    Pending,
-    /// Normals are being estimated on the async compute pool.
-    Preparing,
-    /// Prepared; `normals_estimated` tells whether normals were estimated (true) or the
-    /// cloud's own (false).
-    Ready {
-        /// Whether normals were estimated.
-        normals_estimated: bool,
-    },
-    /// Preparation failed; the message says why.
-    Failed(String),
+    /// Displacement transfer (§5): resampling when due, dense positions and normals.
+    Transfer,
 }
 
 impl Plugin for PointSpringsPlugin {
     fn build(&self, app: &mut App) {
-        app.insert_resource(PointSpringsConfig {
-            normal_k: self.normal_k,
-        })
-        .register_type::<PointSpringsConfig>()
-        .register_type::<DenseSurface>()
-        .register_type::<SurfaceStatus>()
-        .configure_sets(
-            FixedUpdate,
-            (
-                PointSpringsSystems::Prepare,
-                PointSpringsSystems::Forces,
-                PointSpringsSystems::Integrate,
-                PointSpringsSystems::Writeback,
+        app.register_type::<SurfaceStatus>()
+            .register_type::<SurfaceSettings>()
+            .register_type::<SurfaceMaterial>()
+            .register_type::<PreparationProgress>()
+            .configure_sets(
+                self.schedule,
+                (
+                    PointSpringsSystems::Forces,
+                    PointSpringsSystems::Integrate,
+                    PointSpringsSystems::Transfer,
+                )
+                    .chain(),
             )
-                .chain(),
-        )
-        .add_systems(
-            FixedUpdate,
-            (start_preparation, finish_preparation)
-                .chain()
-                .in_set(PointSpringsSystems::Prepare),
-        );
+            .add_systems(
+                PreUpdate,
+                (prepare::start_preparation, prepare::finish_preparation)
+                    .chain()
+                    .in_set(PointSpringsSystems::Prepare),
+            )
+            .add_systems(
+                self.schedule,
+                (
+                    (
+                        simulate::drive_timelines,
+                        simulate::apply_materials,
+                        simulate::accumulate_forces,
+                    )
+                        .chain()
+                        .in_set(PointSpringsSystems::Forces),
+                    simulate::integrate.in_set(PointSpringsSystems::Integrate),
+                    simulate::transfer_tick.in_set(PointSpringsSystems::Transfer),
+                ),
+            )
+            .add_systems(
+                PostUpdate,
+                simulate::transfer_frame.in_set(PointSpringsSystems::Transfer),
+            );
     }
-}
 
-/// Normal estimation under way for a surface.
-#[derive(Component)]
-struct NormalsTask(Task<Result<(Vec<Vec3>, OrientationReport), NormalsError>>);
-
-/// Starts preparing pending surfaces: their own normals are kept (normalised) at once; clouds
-/// without usable normals get an estimation task on the async compute pool.
-fn start_preparation(
-    mut commands: Commands,
-    config: Res<PointSpringsConfig>,
-    mut surfaces: Query<(Entity, &mut DenseSurface, &mut SurfaceStatus)>,
-) {
-    for (entity, mut surface, mut status) in &mut surfaces {
-        if *status != SurfaceStatus::Pending {
-            continue;
+    fn finish(&self, app: &mut App) {
+        // Files need the asset server; without it (headless tests with MinimalPlugins)
+        // surfaces can still be spawned from clouds in memory.
+        if app.is_plugin_added::<AssetPlugin>() {
+            app.init_asset::<CloudAsset>()
+                .init_asset::<SceneAsset>()
+                .init_asset_loader::<CloudLoader>()
+                .init_asset_loader::<SceneLoader>();
         }
-        let cloud = &mut surface.cloud;
-        if cloud.has_usable_normals() {
-            // Only normalises the cloud's own normals: cheap, done at once.
-            *status = match ensure_normals(cloud, config.normal_k) {
-                Ok(source) => SurfaceStatus::Ready {
-                    normals_estimated: source != NormalSource::File,
-                },
-                Err(e) => SurfaceStatus::Failed(e.to_string()),
-            };
-            continue;
-        }
-        let positions = cloud.positions().to_vec();
-        let k = config.normal_k;
-        let task =
-            AsyncComputeTaskPool::get().spawn(async move { estimate_normals(&positions, k) });
-        commands.entity(entity).insert(NormalsTask(task));
-        *status = SurfaceStatus::Preparing;
-    }
-}
-
-/// Collects finished normal estimations.
-fn finish_preparation(
-    mut commands: Commands,
-    mut surfaces: Query<(
-        Entity,
-        &mut DenseSurface,
-        &mut SurfaceStatus,
-        &mut NormalsTask,
-    )>,
-) {
-    for (entity, mut surface, mut status, mut task) in &mut surfaces {
-        let Some(result) = block_on(poll_once(&mut task.0)) else {
-            continue;
-        };
-        commands.entity(entity).remove::<NormalsTask>();
-        *status = match result.map_err(|e| e.to_string()).and_then(|(normals, _)| {
-            surface
-                .cloud
-                .set_normals(normals)
-                .map_err(|e| e.to_string())
-        }) {
-            Ok(()) => SurfaceStatus::Ready {
-                normals_estimated: true,
-            },
-            Err(message) => SurfaceStatus::Failed(message),
-        };
     }
 }

@@ -1,34 +1,130 @@
-//! Surfel drawing (feature `render`): each point of a [`DenseSurface`] becomes a small disc
-//! facing along its normal ([`crate::core::surfels`]), and all discs of a surface form one mesh
-//! (one draw call, lit by Bevy's PBR pipeline through the surfel normals).
+//! Drawing (feature `render`): each dense point of a surface is a lit disc facing along its
+//! normal (a surfel), and the discs follow the transfer every frame.
+//!
+//! **How.** Surfaces with the same look (colour) share one material and one storage buffer
+//! ([`ShaderBuffer`]) holding every surfel of theirs: position and radius, normal (32 bytes
+//! each). Each frame the buffer is rewritten in place from the surfaces' deformed points —
+//! one copy, no new mesh and no new material. Each surface draws a static index mesh of
+//! hexagons (six corners per surfel) whose vertex shader (`surfel.wgsl`) pulls its surfel
+//! from the buffer, starting at the surface's offset (its [`MeshTag`]); the fragment is
+//! StandardMaterial's PBR, so the surfels are lit like any mesh. A surface whose point
+//! count outgrows its slot (resampling) gets a larger slot, and the batch a larger buffer.
+//!
+//! Optional gizmos ([`SpringGizmos`]) draw the simulation points and the stretch and bend
+//! springs in two colours.
 
-use bevy::asset::RenderAssetUsages;
-use bevy::mesh::{Indices, PrimitiveTopology};
+use std::collections::HashMap;
+
+use bevy::asset::{AssetPath, RenderAssetUsages, embedded_asset, embedded_path};
+use bevy::camera::visibility::NoFrustumCulling;
+use bevy::material::OpaqueRendererMethod;
+use bevy::mesh::{Indices, MeshTag, MeshVertexBufferLayoutRef, PrimitiveTopology};
+use bevy::pbr::{
+    ExtendedMaterial, MaterialExtension, MaterialExtensionKey, MaterialExtensionPipeline,
+};
 use bevy::prelude::*;
+use bevy::render::render_resource::{
+    AsBindGroup, RenderPipelineDescriptor, SpecializedMeshPipelineError,
+};
+use bevy::render::storage::ShaderBuffer;
+use bevy::shader::{ShaderDefVal, ShaderRef};
 
-use super::{DenseSurface, SurfaceStatus};
-use crate::core::surfels::{DEFAULT_SURFEL_SCALE, surfel_geometry, surfel_radii};
+use super::PointSpringsSystems;
+use super::components::{DenseSurface, SimulationPoints, SurfaceNetwork, SurfaceSprings};
+use crate::core::surfels::{DEFAULT_SURFEL_SCALE, SURFEL_BYTES, pack_surfels, surfel_radii};
 
-/// Adds surfel drawing. Needs Bevy's renderer (`DefaultPlugins`).
+/// Corners of a surfel's hexagon.
+const CORNERS: usize = 6;
+
+/// The hexagon circumscribes the disc of the surfel's radius (1 / cos 30°).
+const HEXAGON_SCALE: f32 = 1.154_700_5;
+
+/// Smallest slot (surfels) a surface gets.
+const MIN_SLOT: usize = 64;
+
+/// Adds surfel drawing and the spring gizmos. Needs Bevy's renderer (`DefaultPlugins`)
+/// and [`PointSpringsPlugin`](super::PointSpringsPlugin).
 #[derive(Debug, Default, Clone, Copy)]
 pub struct SurfelRenderPlugin;
 
 impl Plugin for SurfelRenderPlugin {
     fn build(&self, app: &mut App) {
-        app.register_type::<SurfelRender>()
-            .add_systems(PostUpdate, attach_surfel_meshes);
+        embedded_asset!(app, "surfel.wgsl");
+        app.add_plugins(MaterialPlugin::<SurfelMaterial>::default())
+            .register_type::<SurfelRender>()
+            .register_type::<SpringGizmos>()
+            .init_resource::<SurfelBatches>()
+            .init_resource::<SpringGizmos>()
+            .init_gizmo_group::<SpringGizmos>()
+            .add_systems(
+                PostUpdate,
+                (attach_surfels, upload_surfels)
+                    .chain()
+                    .after(PointSpringsSystems::Transfer),
+            )
+            .add_systems(Update, draw_gizmos);
     }
 }
 
-/// Draw this [`DenseSurface`] as surfels.
+/// The material of surfels: StandardMaterial's shading with the surfel vertex shader.
+pub type SurfelMaterial = ExtendedMaterial<StandardMaterial, SurfelExtension>;
+
+/// The surfel part of [`SurfelMaterial`]: the storage buffer of a batch.
+#[derive(Asset, AsBindGroup, Reflect, Debug, Clone)]
+pub struct SurfelExtension {
+    /// Position and radius, normal and padding of each surfel of the batch.
+    #[storage(100, read_only)]
+    pub surfels: Handle<ShaderBuffer>,
+}
+
+fn surfel_shader() -> ShaderRef {
+    ShaderRef::Path(AssetPath::from_path_buf(embedded_path!("surfel.wgsl")).with_source("embedded"))
+}
+
+impl MaterialExtension for SurfelExtension {
+    fn vertex_shader() -> ShaderRef {
+        surfel_shader()
+    }
+
+    fn prepass_vertex_shader() -> ShaderRef {
+        surfel_shader()
+    }
+
+    // Shadows and the depth prepass would need the prepass pipeline of the same shader to
+    // be exercised; surfels receive shadows but cast none.
+    fn enable_prepass() -> bool {
+        false
+    }
+
+    fn enable_shadows() -> bool {
+        false
+    }
+
+    fn specialize(
+        _pipeline: &MaterialExtensionPipeline,
+        descriptor: &mut RenderPipelineDescriptor,
+        _layout: &MeshVertexBufferLayoutRef,
+        _key: MaterialExtensionKey<Self>,
+    ) -> Result<(), SpecializedMeshPipelineError> {
+        // Without a prepass of ours, never read the view's prepass normals.
+        if let Some(fragment) = descriptor.fragment.as_mut() {
+            fragment.shader_defs.retain(
+                |d| !matches!(d, ShaderDefVal::Bool(name, _) if name == "LOAD_PREPASS_NORMALS"),
+            );
+        }
+        Ok(())
+    }
+}
+
+/// Draw this surface as surfels.
 #[derive(Component, Debug, Clone, Reflect)]
 #[reflect(Component, Debug)]
-#[require(Transform, Visibility)]
+#[require(Visibility)]
 pub struct SurfelRender {
     /// Disc radius as a multiple of the distance to the point's
-    /// [`SURFEL_NEIGHBOURS`](crate::core::surfels::SURFEL_NEIGHBOURS)-th neighbour.
+    /// [`SURFEL_NEIGHBOURS`](crate::core::surfels::SURFEL_NEIGHBOURS)-th neighbour at rest.
     pub radius_scale: f32,
-    /// Surface colour.
+    /// Surface colour (surfaces of one colour share a material).
     pub color: Color,
 }
 
@@ -41,40 +137,276 @@ impl Default for SurfelRender {
     }
 }
 
-/// Gives ready surfaces that should be drawn their surfel mesh and material.
-fn attach_surfel_meshes(
+/// What to draw over the surfaces with gizmos (a resource; all off by default).
+#[derive(Resource, Debug, Clone, Copy, Default, Reflect, GizmoConfigGroup)]
+#[reflect(Resource, Debug)]
+pub struct SpringGizmos {
+    /// The simulation points, as small crosses.
+    pub points: bool,
+    /// The stretch springs.
+    pub stretch: bool,
+    /// The bend springs.
+    pub bend: bool,
+}
+
+/// A look: the colour's bits.
+type LookKey = [u32; 4];
+
+fn look(color: Color) -> LookKey {
+    color.to_linear().to_f32_array().map(f32::to_bits)
+}
+
+/// Surfaces of one look: their shared material and buffer, and each one's slot in it.
+#[derive(Debug)]
+struct Batch {
+    material: Handle<SurfelMaterial>,
+    buffer: Handle<ShaderBuffer>,
+    /// Surfels the buffer holds.
+    capacity: usize,
+    /// Each member's first surfel and slot size, in order.
+    members: Vec<(Entity, usize, usize)>,
+}
+
+impl Batch {
+    fn used(&self) -> usize {
+        self.members
+            .last()
+            .map_or(0, |&(_, first, slot)| first + slot)
+    }
+}
+
+/// The batches of surfels, one per look.
+#[derive(Resource, Debug, Default)]
+pub struct SurfelBatches {
+    batches: HashMap<LookKey, Batch>,
+    /// Scratch for packing a batch (kept to avoid an allocation per frame).
+    packed: Vec<u8>,
+}
+
+impl SurfelBatches {
+    /// Number of materials (and storage buffers) in use.
+    pub fn materials(&self) -> usize {
+        self.batches.len()
+    }
+}
+
+/// A drawn surface's place in its batch.
+#[derive(Component, Debug)]
+pub struct SurfelSlot {
+    look: LookKey,
+    /// Surfels the slot (and the index mesh) holds.
+    slot: usize,
+    /// Disc radius of each dense point.
+    radii: Vec<f32>,
+    /// The dense surface's revision last uploaded.
+    uploaded: u64,
+}
+
+/// A static index mesh of `slot` hexagons.
+fn index_mesh(slot: usize) -> Mesh {
+    let corners: [[f32; 3]; CORNERS] = std::array::from_fn(|k| {
+        let a = k as f32 * std::f32::consts::TAU / CORNERS as f32;
+        [HEXAGON_SCALE * a.cos(), HEXAGON_SCALE * a.sin(), 0.0]
+    });
+    let mut positions = Vec::with_capacity(slot * CORNERS);
+    let mut indices = Vec::with_capacity(slot * (CORNERS - 2) * 3);
+    for i in 0..slot as u32 {
+        positions.extend_from_slice(&corners);
+        let b = CORNERS as u32 * i;
+        for k in 1..CORNERS as u32 - 1 {
+            indices.extend_from_slice(&[b, b + k, b + k + 1]);
+        }
+    }
+    Mesh::new(
+        PrimitiveTopology::TriangleList,
+        RenderAssetUsages::RENDER_WORLD,
+    )
+    .with_inserted_attribute(Mesh::ATTRIBUTE_POSITION, positions)
+    .with_inserted_indices(Indices::U32(indices))
+}
+
+/// The slot for `points` surfels: a power of two, so that resampling rarely outgrows it.
+fn slot_for(points: usize) -> usize {
+    points.max(MIN_SLOT).next_power_of_two()
+}
+
+/// Gives new (or outgrown) drawn surfaces a slot, a mesh and their batch's material.
+#[allow(clippy::too_many_arguments)]
+fn attach_surfels(
     mut commands: Commands,
-    surfaces: Query<(Entity, &DenseSurface, &SurfaceStatus, &SurfelRender), Without<Mesh3d>>,
+    mut batches: ResMut<SurfelBatches>,
     mut meshes: ResMut<Assets<Mesh>>,
-    mut materials: ResMut<Assets<StandardMaterial>>,
+    mut materials: ResMut<Assets<SurfelMaterial>>,
+    mut buffers: ResMut<Assets<ShaderBuffer>>,
+    mut surfaces: Query<(
+        Entity,
+        &DenseSurface,
+        &SurfelRender,
+        Option<&mut SurfelSlot>,
+    )>,
+    mut removed: RemovedComponents<SurfelSlot>,
 ) {
-    for (entity, surface, status, render) in &surfaces {
-        if !matches!(status, SurfaceStatus::Ready { .. }) {
+    // Forget despawned surfaces (their slots are reused when the batch is laid out anew).
+    for entity in removed.read() {
+        for batch in batches.batches.values_mut() {
+            batch.members.retain(|m| m.0 != entity);
+        }
+    }
+    for (entity, dense, render, slot) in &mut surfaces {
+        let key = look(render.color);
+        let fits = slot.as_ref().is_some_and(|s| {
+            s.look == key && s.radii.len() == dense.len() && dense.len() <= s.slot
+        });
+        if fits {
             continue;
         }
-        let cloud = &surface.cloud;
-        let Some(normals) = cloud.normals() else {
+        if slot
+            .as_ref()
+            .is_some_and(|s| s.look == key && dense.len() <= s.slot)
+        {
+            // Grown within its slot (resampling): new points need radii only.
+            if let Some(mut slot) = slot {
+                slot.radii = surfel_radii(dense.transfer().rest_positions(), render.radius_scale);
+                slot.uploaded = 0;
+            }
             continue;
-        };
-        let radii = surfel_radii(cloud.positions(), render.radius_scale);
-        let geometry = surfel_geometry(cloud.positions(), normals, &radii);
-        let mesh = Mesh::new(
-            PrimitiveTopology::TriangleList,
-            RenderAssetUsages::default(),
-        )
-        .with_inserted_attribute(Mesh::ATTRIBUTE_POSITION, geometry.positions)
-        .with_inserted_attribute(Mesh::ATTRIBUTE_NORMAL, geometry.normals)
-        .with_inserted_indices(Indices::U32(geometry.indices));
-        let material = StandardMaterial {
-            base_color: render.color,
-            perceptual_roughness: 0.7,
-            double_sided: true,
-            cull_mode: None,
-            ..default()
-        };
+        }
+        // A new slot: leave the old batch, join (or found) the batch of this look.
+        if let Some(batch) = slot
+            .as_ref()
+            .and_then(|old| batches.batches.get_mut(&old.look))
+        {
+            batch.members.retain(|m| m.0 != entity);
+        }
+        let size = slot_for(dense.len());
+        let SurfelBatches { batches, .. } = &mut *batches;
+        let batch = batches.entry(key).or_insert_with(|| {
+            let buffer = buffers.add(ShaderBuffer::new(
+                &vec![0u8; SURFEL_BYTES * size],
+                RenderAssetUsages::RENDER_WORLD,
+            ));
+            let material = materials.add(SurfelMaterial {
+                base: StandardMaterial {
+                    base_color: render.color,
+                    perceptual_roughness: 0.7,
+                    cull_mode: None,
+                    double_sided: true,
+                    opaque_render_method: OpaqueRendererMethod::Forward,
+                    ..default()
+                },
+                extension: SurfelExtension {
+                    surfels: buffer.clone(),
+                },
+            });
+            Batch {
+                material,
+                buffer,
+                capacity: size,
+                members: Vec::new(),
+            }
+        });
+        let first = batch.used();
+        batch.members.push((entity, first, size));
+        let needed = first + size;
+        if needed > batch.capacity {
+            // A larger buffer under a new handle, and the material pointed at it (the old
+            // buffer is freed once nothing uses it).
+            batch.capacity = needed.next_power_of_two();
+            batch.buffer = buffers.add(ShaderBuffer::new(
+                &vec![0u8; SURFEL_BYTES * batch.capacity],
+                RenderAssetUsages::RENDER_WORLD,
+            ));
+            if let Some(mut material) = materials.get_mut(&batch.material) {
+                material.extension.surfels = batch.buffer.clone();
+            }
+        }
+        let radii = surfel_radii(dense.transfer().rest_positions(), render.radius_scale);
         commands.entity(entity).insert((
-            Mesh3d(meshes.add(mesh)),
-            MeshMaterial3d(materials.add(material)),
+            SurfelSlot {
+                look: key,
+                slot: size,
+                radii,
+                uploaded: 0,
+            },
+            Mesh3d(meshes.add(index_mesh(size))),
+            MeshMaterial3d(batch.material.clone()),
+            MeshTag(first as u32),
+            NoFrustumCulling,
         ));
+    }
+}
+
+/// Rewrites each batch's buffer where one of its surfaces changed.
+fn upload_surfels(
+    mut batches: ResMut<SurfelBatches>,
+    mut buffers: ResMut<Assets<ShaderBuffer>>,
+    mut surfaces: Query<(&DenseSurface, &mut SurfelSlot)>,
+) {
+    let SurfelBatches { batches, packed } = &mut *batches;
+    for batch in batches.values() {
+        let changed = batch.members.iter().any(|&(e, ..)| {
+            surfaces
+                .get(e)
+                .is_ok_and(|(dense, slot)| slot.uploaded != dense.revision())
+        });
+        if !changed {
+            continue;
+        }
+        packed.clear();
+        for &(entity, first, _) in &batch.members {
+            let Ok((dense, mut slot)) = surfaces.get_mut(entity) else {
+                continue;
+            };
+            // Unused surfels (radius 0) up to the slot's start draw nothing.
+            packed.resize(first * SURFEL_BYTES, 0);
+            pack_surfels(dense.positions(), dense.normals(), &slot.radii, packed);
+            slot.uploaded = dense.revision();
+        }
+        packed.resize(batch.capacity * SURFEL_BYTES, 0);
+        if let Some(mut buffer) = buffers.get_mut(&batch.buffer) {
+            // Moved to the render world on extraction, so a copy goes each time.
+            buffer.data = Some(packed.clone());
+        }
+    }
+}
+
+/// Simulation points and springs, when [`SpringGizmos`] asks for them.
+fn draw_gizmos(
+    settings: Res<SpringGizmos>,
+    mut gizmos: Gizmos<SpringGizmos>,
+    surfaces: Query<(
+        &SimulationPoints,
+        &SurfaceSprings,
+        &SurfaceNetwork,
+        &GlobalTransform,
+    )>,
+) {
+    if !(settings.points || settings.stretch || settings.bend) {
+        return;
+    }
+    let stretch_color = Color::srgb(0.25, 0.65, 1.0);
+    let bend_color = Color::srgb(1.0, 0.35, 0.55);
+    for (points, springs, network, transform) in &surfaces {
+        let at = |i: usize| transform.transform_point(points.position(i));
+        if settings.points {
+            // A fifth of the typical spacing: √(area per point).
+            let spacing = (network.report.area / network.len().max(1) as f32).sqrt();
+            let size = 0.2 * spacing.max(1e-6);
+            for i in 0..points.len() {
+                gizmos.cross(at(i), size, Color::srgb(1.0, 0.85, 0.2));
+            }
+        }
+        let stretch_count = network.stretch.len();
+        for (index, spring) in springs.iter() {
+            let is_stretch = index < stretch_count;
+            if (is_stretch && settings.stretch) || (!is_stretch && settings.bend) {
+                let color = if is_stretch {
+                    stretch_color
+                } else {
+                    bend_color
+                };
+                gizmos.line(at(spring.a as usize), at(spring.b as usize), color);
+            }
+        }
     }
 }

@@ -80,6 +80,12 @@ pub enum BenchCase {
         #[arg(long)]
         json: bool,
     },
+    /// The Bevy plugin headless (one fixed tick per update): milliseconds per tick split
+    /// into forces, stepping and transfer, the surfel upload's packing, and the same work
+    /// done by the core alone in the same run. Without SCENE: a generated sphere (of
+    /// --dense points, --sim simulation points) in a cup with a sustained poke.
+    #[cfg(feature = "plugin")]
+    Plugin(crate::bench_plugin::PluginArgs),
 }
 
 /// Where the transfer benchmark's simulation points come from.
@@ -390,6 +396,8 @@ impl<S, F: FnMut() -> S> Timed<S, F> {
 /// Runs a benchmark.
 pub fn bench(case: BenchCase) -> Result<(), Failure> {
     match case {
+        #[cfg(feature = "plugin")]
+        BenchCase::Plugin(args) => crate::bench_plugin::bench_plugin(&args),
         BenchCase::ClothGrid {
             size,
             steps,

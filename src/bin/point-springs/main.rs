@@ -9,6 +9,7 @@
 //!                        [--no-reference] [--json]
 //! point-springs bench transfer [--points N] [--sim M] [--sim-source sphere|simplify] [-k K]
 //!                        [--bandwidth H] [--repeat R] [--no-literal] [--json]
+//! point-springs bench plugin [SCENE.ron] [--dense N] [--sim M] [--ticks T] [--block B] [--json]
 //! point-springs run SCENE.ron [-o DEFORMED.ply] [--png PICTURE.png] [--view X,Y,Z] [--json]
 //! point-springs render FILE -o PICTURE.png [--view X,Y,Z] [--up X,Y,Z] [--width W] [--height H]
 //! point-springs generate (sphere|hat|sheet|letter-b) -o OUT.ply [--points N] [--radius R]
@@ -19,6 +20,8 @@
 //! 1 any other failure (e.g. the output cannot be written).
 
 mod bench;
+#[cfg(feature = "plugin")]
+mod bench_plugin;
 mod render;
 
 use std::path::{Path, PathBuf};

@@ -1,0 +1,360 @@
+//! `point-springs bench plugin`: the Bevy plugin run headless (one fixed tick per update)
+//! against the same work done by the core alone, measured in the same run.
+//!
+//! The ECS tick is timed by marker systems ordered between the plugin's chained sets, so
+//! its figures include the scheduler's own cost: forces (timeline, springs, gravity,
+//! anchors, drag, pressure), stepping, transfer. The surfel upload is timed as the renderer
+//! does it on the CPU (packing the dense surface into the storage buffer's bytes and
+//! handing over a copy); the copy to the GPU itself needs a GPU and is not measured. The
+//! core runs the same scene from the same prepared state; ECS and core alternate in blocks
+//! of ticks, and their dense surfaces are compared bit for bit at the end.
+
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use bevy::prelude::*;
+use bevy::time::TimeUpdateStrategy;
+use bevy_point_springs::core::PointCloud;
+use bevy_point_springs::core::io::read_cloud;
+use bevy_point_springs::core::pipeline::{DenseCloud, PreparedSurface};
+use bevy_point_springs::core::scene::{Pull, Region, Scene, Timeline};
+use bevy_point_springs::core::shapes::fibonacci_sphere;
+use bevy_point_springs::core::simplify::SimplifyConfig;
+use bevy_point_springs::core::solver::{Integrator, SolverConfig, SpringMaterial};
+use bevy_point_springs::core::surfels::{DEFAULT_SURFEL_SCALE, pack_surfels, surfel_radii};
+use bevy_point_springs::prelude::{
+    DeformableSurface, DenseSurface, PointSpringsPlugin, PointSpringsSystems, SurfaceStatus,
+};
+use serde::Serialize;
+
+use crate::{Failure, print_json};
+
+/// Options of `bench plugin`.
+#[derive(clap::Args)]
+pub struct PluginArgs {
+    /// A scene file (default: a generated sphere with a sustained poke).
+    scene: Option<PathBuf>,
+    /// Dense points of the generated sphere.
+    #[arg(long, default_value_t = 3203)]
+    dense: usize,
+    /// Simulation points of the generated sphere.
+    #[arg(long, default_value_t = 338)]
+    sim: usize,
+    /// Ticks timed (each of the ECS and of the core).
+    #[arg(long, default_value_t = 300)]
+    ticks: usize,
+    /// Ticks per block (the ECS and the core alternate in blocks).
+    #[arg(long, default_value_t = 30)]
+    block: usize,
+    /// Print JSON instead of text.
+    #[arg(long)]
+    json: bool,
+}
+
+/// Largest dense cloud the generated scene takes.
+const MAX_DENSE: usize = 5_000_000;
+
+/// The step of the generated scene, s.
+const GENERATED_DT: f32 = 1.0 / 60.0;
+
+/// Upper bound on waiting for the ECS preparation (a hang guard).
+const PREPARE_TIMEOUT: Duration = Duration::from_secs(600);
+
+#[derive(Serialize)]
+struct PluginReport {
+    scene: String,
+    dense_points: usize,
+    sim_points: usize,
+    springs: usize,
+    integrator: String,
+    ticks: usize,
+    ms_prepare: f64,
+    ms_forces: f64,
+    ms_stepping: f64,
+    ms_transfer: f64,
+    ms_tick: f64,
+    ms_upload: f64,
+    ms_frame: f64,
+    ms_core_tick: f64,
+    ecs_over_core: f64,
+    identical: bool,
+}
+
+/// The sphere of the paper's Fig. 5 at any size, held in its cup and pressed from above for
+/// the whole run (the points never come to rest, so no transfer is skipped).
+fn generated_scene(dense: usize, sim: usize, steps: usize) -> (Scene, PointCloud) {
+    let scene = Scene {
+        cloud: PathBuf::from(format!("<generated sphere of {dense} points>")),
+        normals: Default::default(),
+        simplify: SimplifyConfig::target(sim),
+        material: SpringMaterial {
+            stretch_stiffness: 60.0,
+            bend_stiffness: 60.0,
+            stretch_damping: 0.6,
+            bend_damping: 0.3,
+            ..SpringMaterial::default()
+        },
+        solver: SolverConfig {
+            integrator: Integrator::ImplicitEuler,
+            gravity: Vec3::ZERO,
+            drag: 4.0,
+            ..SolverConfig::default()
+        },
+        transfer: Default::default(),
+        resample: None,
+        pressure: Some(1000.0),
+        dt: GENERATED_DT,
+        steps,
+        pins: vec![Region::Box {
+            min: Vec3::splat(-2.0),
+            max: Vec3::new(2.0, -0.6, 2.0),
+        }],
+        pulls: vec![Pull {
+            at: Vec3::Y,
+            radius: Some(0.3),
+            to: Vec3::Y,
+            to_end: Some(Vec3::Y * 0.55),
+            stiffness: 300.0,
+            damping: 1.0,
+            start: 0,
+            end: None,
+        }],
+    };
+    (scene, fibonacci_sphere(dense, 1.0))
+}
+
+/// Marker times of the current tick, and the sums over timed ticks.
+#[derive(Resource, Default)]
+struct Clock {
+    marks: [Option<Instant>; 4],
+    sums: [f64; 3],
+    timed: usize,
+    timing: bool,
+}
+
+fn mark<const I: usize>(mut clock: ResMut<Clock>) {
+    clock.marks[I] = Some(Instant::now());
+    if I == 3
+        && clock.timing
+        && let [Some(a), Some(b), Some(c), Some(d)] = clock.marks
+    {
+        clock.sums[0] += (b - a).as_secs_f64();
+        clock.sums[1] += (c - b).as_secs_f64();
+        clock.sums[2] += (d - c).as_secs_f64();
+        clock.timed += 1;
+    }
+}
+
+fn ecs_app(dt: f32) -> App {
+    let tick = Duration::from_secs_f64(f64::from(dt));
+    let mut app = App::new();
+    app.add_plugins((MinimalPlugins, PointSpringsPlugin::default()))
+        .insert_resource(TimeUpdateStrategy::ManualDuration(tick))
+        .insert_resource(Time::<Fixed>::from_duration(tick))
+        .init_resource::<Clock>()
+        .add_systems(
+            FixedUpdate,
+            (
+                mark::<0>.before(PointSpringsSystems::Forces),
+                mark::<1>
+                    .after(PointSpringsSystems::Forces)
+                    .before(PointSpringsSystems::Integrate),
+                mark::<2>
+                    .after(PointSpringsSystems::Integrate)
+                    .before(PointSpringsSystems::Transfer),
+                mark::<3>.after(PointSpringsSystems::Transfer),
+            ),
+        );
+    app.finish();
+    app.cleanup();
+    app.update();
+    app
+}
+
+/// The core's run of the same scene.
+struct CoreRun {
+    surface: PreparedSurface,
+    timeline: Timeline,
+    dt: f32,
+}
+
+impl CoreRun {
+    fn tick(&mut self) -> Result<(), Failure> {
+        let s = &mut self.surface;
+        self.timeline
+            .advance(&mut s.solver.anchors, &s.network.positions)
+            .map_err(Failure::other)?;
+        s.solver.step(self.dt).map_err(Failure::other)?;
+        let steps = s.solver.diagnostics().steps;
+        s.dense
+            .maintain(&s.solver.points, steps)
+            .map_err(Failure::other)?;
+        s.dense.follow(&s.solver.points).map_err(Failure::other)?;
+        Ok(())
+    }
+}
+
+fn dense_of(app: &App, entity: Entity) -> Result<&DenseCloud, Failure> {
+    app.world()
+        .get::<DenseSurface>(entity)
+        .map(|d| &d.0)
+        .ok_or_else(|| Failure::other("the surface has no dense surface"))
+}
+
+/// Runs the benchmark.
+pub fn bench_plugin(args: &PluginArgs) -> Result<(), Failure> {
+    if args.ticks == 0 || args.block == 0 {
+        return Err(Failure::bad_input("--ticks and --block must be at least 1"));
+    }
+    if !(4..=MAX_DENSE).contains(&args.dense) {
+        return Err(Failure::bad_input(format!(
+            "--dense must be between 4 and {MAX_DENSE}"
+        )));
+    }
+    // Enough timeline for warm-up and both runs' ticks.
+    let steps = args.ticks + args.block + 1;
+    let (scene, cloud, name) = match &args.scene {
+        Some(path) => {
+            let (scene, base) = Scene::load(path).map_err(Failure::bad_input)?;
+            let cloud = read_cloud(&base.join(&scene.cloud), None).map_err(Failure::bad_input)?;
+            (scene, cloud, path.display().to_string())
+        }
+        None => {
+            let (scene, cloud) = generated_scene(args.dense, args.sim, steps);
+            let name = scene.cloud.display().to_string();
+            (scene, cloud, name)
+        }
+    };
+
+    // The ECS: prepared in the background, then ticked.
+    let mut app = ecs_app(scene.dt);
+    let start = Instant::now();
+    let entity = app
+        .world_mut()
+        .spawn(DeformableSurface::scene_data(scene.clone(), cloud.clone()))
+        .id();
+    while matches!(
+        app.world().get::<SurfaceStatus>(entity),
+        Some(SurfaceStatus::Pending | SurfaceStatus::Loading | SurfaceStatus::Preparing)
+    ) {
+        if start.elapsed() > PREPARE_TIMEOUT {
+            return Err(Failure::other("the surface was not prepared in time"));
+        }
+        std::thread::sleep(Duration::from_millis(1));
+        app.update();
+    }
+    let ms_prepare = start.elapsed().as_secs_f64() * 1e3;
+    if let Some(SurfaceStatus::Failed(message)) = app.world().get::<SurfaceStatus>(entity) {
+        return Err(Failure::bad_input(message.clone()));
+    }
+    // The core, from the same cloud and scene.
+    let (surface, timeline) = scene
+        .prepare_cloud(cloud, &mut |_| std::ops::ControlFlow::Continue(()))
+        .map_err(Failure::other)?;
+    let mut core = CoreRun {
+        surface,
+        timeline,
+        dt: scene.dt,
+    };
+    // The first tick ran with the update that finished the preparation: catch the core up.
+    let ecs_steps = |app: &App| {
+        app.world()
+            .get::<bevy_point_springs::prelude::SurfaceStepper>(entity)
+            .map_or(0, |s| s.diagnostics().steps)
+    };
+    while core.surface.solver.diagnostics().steps < ecs_steps(&app) {
+        core.tick()?;
+    }
+
+    let radii = surfel_radii(
+        dense_of(&app, entity)?.transfer().rest_positions(),
+        DEFAULT_SURFEL_SCALE,
+    );
+    let mut packed = Vec::new();
+    let (mut upload, mut core_seconds, mut core_ticks) = (0.0, 0.0, 0);
+    // A warm-up block of each, untimed.
+    for _ in 0..args.block {
+        app.update();
+        core.tick()?;
+    }
+    app.world_mut().resource_mut::<Clock>().timing = true;
+    while core_ticks < args.ticks {
+        let n = args.block.min(args.ticks - core_ticks);
+        for _ in 0..n {
+            app.update();
+            let dense = dense_of(&app, entity)?;
+            let start = Instant::now();
+            packed.clear();
+            pack_surfels(dense.positions(), dense.normals(), &radii, &mut packed);
+            let handed_over = Arc::new(packed.clone());
+            upload += start.elapsed().as_secs_f64();
+            drop(handed_over);
+        }
+        let start = Instant::now();
+        for _ in 0..n {
+            core.tick()?;
+        }
+        core_seconds += start.elapsed().as_secs_f64();
+        core_ticks += n;
+    }
+    let clock = app.world().resource::<Clock>();
+    let timed = clock.timed.max(1) as f64;
+    let [forces, stepping, transfer] = clock.sums.map(|s| s * 1e3 / timed);
+    let ms_tick = forces + stepping + transfer;
+    let ms_upload = upload * 1e3 / core_ticks as f64;
+    let ms_core_tick = core_seconds * 1e3 / core_ticks as f64;
+    let dense = dense_of(&app, entity)?;
+    let same = |a: &[Vec3], b: &[Vec3]| {
+        a.len() == b.len()
+            && a.iter()
+                .zip(b)
+                .all(|(p, q)| p.to_array().map(f32::to_bits) == q.to_array().map(f32::to_bits))
+    };
+    let identical = ecs_steps(&app) == core.surface.solver.diagnostics().steps
+        && same(dense.positions(), core.surface.dense.positions())
+        && same(dense.normals(), core.surface.dense.normals());
+    let report = PluginReport {
+        scene: name,
+        dense_points: dense.len(),
+        sim_points: core.surface.solver.len(),
+        springs: core.surface.solver.spring_count(),
+        integrator: scene.solver.integrator.to_string(),
+        ticks: clock.timed,
+        ms_prepare,
+        ms_forces: forces,
+        ms_stepping: stepping,
+        ms_transfer: transfer,
+        ms_tick,
+        ms_upload,
+        ms_frame: ms_tick + ms_upload,
+        ms_core_tick,
+        ecs_over_core: ms_tick / ms_core_tick,
+        identical,
+    };
+    if args.json {
+        return print_json(&report);
+    }
+    println!(
+        "scene        {} ({} dense, {} simulation points, {} springs, {})",
+        report.scene, report.dense_points, report.sim_points, report.springs, report.integrator
+    );
+    println!(
+        "prepare      {:.1} ms (in the background)",
+        report.ms_prepare
+    );
+    println!(
+        "ECS tick     {:.3} ms = forces {:.3} + stepping {:.3} + transfer {:.3} (mean of {})",
+        report.ms_tick, report.ms_forces, report.ms_stepping, report.ms_transfer, report.ticks
+    );
+    println!(
+        "upload       {:.3} ms (packing the surfels, CPU side); frame {:.3} ms",
+        report.ms_upload, report.ms_frame
+    );
+    println!(
+        "core tick    {:.3} ms (the same work without the ECS): ECS / core = {:.3}",
+        report.ms_core_tick, report.ecs_over_core
+    );
+    println!("identical    {}", report.identical);
+    Ok(())
+}

@@ -1,0 +1,283 @@
+//! The components of a deformable surface. One entity per surface; each component holds
+//! whole arrays (never an entity per point), so the spring loop reads contiguous memory.
+//!
+//! A game spawns a [`DeformableSurface`]; once it is prepared the plugin adds the rest:
+//!
+//! | component | holds | a game may |
+//! |---|---|---|
+//! | [`SimulationPoints`] | positions and velocities of the simulation points | read them; move or push a point |
+//! | [`SurfaceMasses`] | masses and pins | pin or free a point |
+//! | [`SurfaceSprings`] | stretch and bend springs: ends, rest lengths, stiffness, damping | read them |
+//! | [`SurfaceAnchors`] | anchor springs to world points (eq 5): pokes, drags | add, move, remove |
+//! | [`SurfaceForces`] | a force per point, cleared after each tick | add to it in [`PointSpringsSystems::Forces`](super::PointSpringsSystems::Forces) |
+//! | [`SurfaceStepper`] | integrator settings, force buffers, running totals | change the integrator, gravity, drag |
+//! | [`SurfaceMaterial`] | density, spring stiffness and damping | change it (the springs follow) |
+//! | [`SurfaceNetwork`] | the simulation points' rest positions, rings and springs | read them |
+//! | [`DenseSurface`] | rest cloud, transfer coefficients, deformed positions and normals | read them (drawing, export) |
+//! | [`SceneTimeline`] | a scene's pulls on their schedule (scenes only) | read its step |
+
+use std::sync::Arc;
+
+use bevy::ecs::query::QueryData;
+use bevy::prelude::*;
+
+use crate::core::PointCloud;
+use crate::core::network::SpringNetwork;
+use crate::core::pipeline::{DenseCloud, Stage, SurfaceConfig};
+use crate::core::scene::{Scene, Timeline};
+use crate::core::solver::{
+    Anchors, ExternalForces, Masses, Model, PointState, Pressure, SpringMaterial, Springs, Stepper,
+};
+
+use super::assets::{CloudAsset, SceneAsset};
+
+/// Where a surface's dense cloud comes from.
+#[derive(Debug, Clone)]
+pub enum SurfaceSource {
+    /// A scene file (`.ron`, loaded with the asset server): its cloud, settings, pins and
+    /// pulls.
+    Scene(Handle<SceneAsset>),
+    /// A cloud file loaded with the asset server (`.ply .xyz .pwn .off .obj`), prepared
+    /// with the surface's [`SurfaceConfig`].
+    CloudAsset(Handle<CloudAsset>),
+    /// A cloud in memory, prepared with the surface's [`SurfaceConfig`].
+    Cloud(Arc<PointCloud>),
+    /// A scene and its cloud in memory (a scene made by code, or read without the asset
+    /// server).
+    SceneData(Arc<(Scene, PointCloud)>),
+}
+
+/// A deformable point-sampled surface: spawn one, and the plugin prepares it in the
+/// background (normals, §3 simplification, §4 springs, §5 transfer) and simulates it on the
+/// fixed tick. [`SurfaceStatus`] tells how far it is.
+///
+/// ```no_run
+/// use bevy::prelude::*;
+/// use bevy_point_springs::prelude::*;
+///
+/// fn spawn(mut commands: Commands, assets: Res<AssetServer>) {
+///     // A whole scene: cloud, settings, pins and pulls on their schedule.
+///     commands.spawn(DeformableSurface::scene(assets.load("scenes/hat.ron")));
+///     // A cloud file with settings of your own.
+///     let config = SurfaceConfig::default();
+///     commands.spawn((
+///         DeformableSurface::cloud_asset(assets.load("kitten.off"), config),
+///         Transform::from_xyz(3.0, 0.0, 0.0),
+///     ));
+/// }
+/// ```
+#[derive(Component, Debug, Clone)]
+#[require(SurfaceStatus, SurfaceSettings, Transform)]
+pub struct DeformableSurface {
+    /// Where the dense cloud comes from.
+    pub source: SurfaceSource,
+    /// How it is prepared and simulated (a scene's own settings replace it once the scene
+    /// has loaded).
+    pub config: SurfaceConfig,
+}
+
+impl DeformableSurface {
+    /// A surface from a scene file.
+    pub fn scene(scene: Handle<SceneAsset>) -> Self {
+        Self {
+            source: SurfaceSource::Scene(scene),
+            config: SurfaceConfig::default(),
+        }
+    }
+
+    /// A surface from a cloud file.
+    pub fn cloud_asset(cloud: Handle<CloudAsset>, config: SurfaceConfig) -> Self {
+        Self {
+            source: SurfaceSource::CloudAsset(cloud),
+            config,
+        }
+    }
+
+    /// A surface from a cloud in memory.
+    pub fn cloud(cloud: PointCloud, config: SurfaceConfig) -> Self {
+        Self {
+            source: SurfaceSource::Cloud(Arc::new(cloud)),
+            config,
+        }
+    }
+
+    /// A surface from a scene and its cloud in memory.
+    pub fn scene_data(scene: Scene, cloud: PointCloud) -> Self {
+        Self {
+            config: scene.surface_config(),
+            source: SurfaceSource::SceneData(Arc::new((scene, cloud))),
+        }
+    }
+}
+
+/// Where a [`DeformableSurface`] is. Set it back to [`SurfaceStatus::Pending`] to prepare
+/// the surface again (after changing its source or settings).
+#[derive(Component, Debug, Clone, Default, PartialEq, Reflect)]
+#[reflect(Component, Debug, Default)]
+pub enum SurfaceStatus {
+    /// Not looked at yet.
+    #[default]
+    Pending,
+    /// Waiting for the asset server (the scene or cloud file).
+    Loading,
+    /// Being prepared on the async compute pool (see [`PreparationProgress`]).
+    Preparing,
+    /// Prepared and simulating.
+    Ready,
+    /// Loading, preparing or simulating failed; the message says why. Other surfaces are
+    /// not affected.
+    Failed(String),
+}
+
+impl SurfaceStatus {
+    /// Whether the surface is simulating.
+    pub fn is_ready(&self) -> bool {
+        matches!(self, Self::Ready)
+    }
+}
+
+/// How far the preparation of a surface is (present while [`SurfaceStatus::Preparing`]).
+#[derive(Component, Debug, Clone, Copy, PartialEq, Reflect)]
+#[reflect(Component, Debug)]
+pub struct PreparationProgress {
+    /// The stage under way: "normals", "simplify", "network" or "transfer".
+    pub stage: &'static str,
+    /// How far the whole preparation is, from 0 to 1.
+    pub fraction: f32,
+}
+
+impl PreparationProgress {
+    pub(crate) fn at(stage: Stage, fraction: f32) -> Self {
+        Self {
+            stage: stage.name(),
+            fraction,
+        }
+    }
+}
+
+/// When the dense surface follows the simulation.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Reflect)]
+pub enum TransferTiming {
+    /// After every fixed tick that moved the simulation points.
+    #[default]
+    EveryTick,
+    /// Once per rendered frame (in `PostUpdate`), if a tick moved the points: cheaper when
+    /// ticks outnumber frames. Resampling still happens on its tick.
+    PerFrame,
+}
+
+/// Per-surface settings of the plugin.
+#[derive(Component, Debug, Clone, Copy, PartialEq, Default, Reflect)]
+#[reflect(Component, Debug, Default)]
+pub struct SurfaceSettings {
+    /// When the dense surface follows the simulation.
+    pub transfer: TransferTiming,
+    /// Whether the simulation is held (no forces, no steps).
+    pub paused: bool,
+}
+
+/// The simulation points' positions and velocities (in the surface's own coordinates).
+#[derive(Component, Debug, Clone, Default, Deref, DerefMut)]
+pub struct SimulationPoints(pub PointState);
+
+/// The simulation points' masses (eq 1) and which of them are pinned.
+#[derive(Component, Debug, Clone, Default, Deref, DerefMut)]
+pub struct SurfaceMasses(pub Masses);
+
+/// The stretch and bend springs (eq 2–3).
+#[derive(Component, Debug, Clone, Default, Deref, DerefMut)]
+pub struct SurfaceSprings(pub Springs);
+
+/// Anchor springs from simulation points to points in the surface's coordinates (eq 5):
+/// pokes, drags, soft pins. Add, move and remove them at any time.
+#[derive(Component, Debug, Clone, Default, Deref, DerefMut)]
+pub struct SurfaceAnchors(pub Anchors);
+
+/// A force on each simulation point from the game (wind, magnets, contacts): add to it
+/// from a system in [`PointSpringsSystems::Forces`](super::PointSpringsSystems::Forces).
+/// The step adds it to the surface's own forces, then clears it.
+#[derive(Component, Debug, Clone, Default, Deref, DerefMut)]
+pub struct SurfaceForces(pub ExternalForces);
+
+/// Gas inside a closed surface ([`SurfaceConfig::pressure`]).
+#[derive(Component, Debug, Clone, Deref, DerefMut)]
+pub struct SurfacePressure(pub Pressure);
+
+/// The integrator's settings, force buffers and running totals.
+#[derive(Component, Debug, Clone, Default, Deref, DerefMut)]
+pub struct SurfaceStepper(pub Stepper);
+
+/// The surface's material. Changing it sets every spring's stiffness and damping anew.
+#[derive(Component, Debug, Clone, Copy, PartialEq, Reflect)]
+#[reflect(Component, Debug)]
+pub struct SurfaceMaterial {
+    /// Mass per unit area ρ (the masses are set when the surface is prepared).
+    pub density: f32,
+    /// Stiffness of stretch springs.
+    pub stretch_stiffness: f32,
+    /// Stiffness of bend springs.
+    pub bend_stiffness: f32,
+    /// Damping of stretch springs.
+    pub stretch_damping: f32,
+    /// Damping of bend springs.
+    pub bend_damping: f32,
+}
+
+impl From<SpringMaterial> for SurfaceMaterial {
+    fn from(m: SpringMaterial) -> Self {
+        Self {
+            density: m.density,
+            stretch_stiffness: m.stretch_stiffness,
+            bend_stiffness: m.bend_stiffness,
+            stretch_damping: m.stretch_damping,
+            bend_damping: m.bend_damping,
+        }
+    }
+}
+
+impl From<SurfaceMaterial> for SpringMaterial {
+    fn from(m: SurfaceMaterial) -> Self {
+        Self {
+            density: m.density,
+            stretch_stiffness: m.stretch_stiffness,
+            bend_stiffness: m.bend_stiffness,
+            stretch_damping: m.stretch_damping,
+            bend_damping: m.bend_damping,
+        }
+    }
+}
+
+/// The simulation points at rest: positions, normals, rings, springs and masses as §3–§4
+/// built them.
+#[derive(Component, Debug, Clone, Deref)]
+pub struct SurfaceNetwork(pub Arc<SpringNetwork>);
+
+/// The dense surface: its rest cloud and transfer coefficients, and its deformed positions
+/// and normals (in the surface's own coordinates), updated as the simulation moves.
+#[derive(Component, Debug, Clone, Deref, DerefMut)]
+pub struct DenseSurface(pub DenseCloud);
+
+/// A scene's pulls and pokes on their schedule (surfaces spawned from scenes).
+#[derive(Component, Debug, Clone, Deref, DerefMut)]
+pub struct SceneTimeline(pub Timeline);
+
+/// The read-only parts of a surface a step needs, as one query item.
+#[derive(QueryData)]
+pub(crate) struct ModelQuery {
+    masses: &'static SurfaceMasses,
+    springs: &'static SurfaceSprings,
+    anchors: &'static SurfaceAnchors,
+    pressure: Option<&'static SurfacePressure>,
+}
+
+impl ModelQueryItem<'_, '_> {
+    /// The parts as the core's [`Model`].
+    pub(crate) fn model(&self) -> Model<'_> {
+        Model {
+            masses: self.masses,
+            springs: self.springs,
+            anchors: self.anchors,
+            pressure: self.pressure.map(|p| &p.0),
+        }
+    }
+}

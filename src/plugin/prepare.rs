@@ -1,0 +1,322 @@
+//! Preparation: a new [`DeformableSurface`] is noticed once, its files are awaited from
+//! the asset server, and the one core pipeline ([`prepare_surface`], or a scene's
+//! [`Scene::prepare_cloud`](crate::core::scene::Scene::prepare_cloud)) runs on Bevy's async
+//! compute pool, reporting [`PreparationProgress`]. When it is done the simulation's
+//! components are inserted. Despawning the entity (or setting its status back to
+//! `Pending`) drops the task, which tells the pipeline to stop at its next progress
+//! report.
+//!
+//! **Threads.** The pipeline's own parallel loops use rayon. Inside a Bevy app they run in
+//! a rayon pool of the plugin's ([`PreparationPool`]) with as many threads as Bevy's async
+//! compute pool has, not in rayon's global pool (one thread per core): Bevy's compute pool
+//! already keeps every core busy during a frame, so a second pool of that size would
+//! take cores from the game's frames while a surface is being prepared.
+
+use std::ops::ControlFlow;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
+
+use bevy::asset::LoadState;
+use bevy::prelude::*;
+use bevy::tasks::futures::check_ready;
+use bevy::tasks::{AsyncComputeTaskPool, Task};
+
+use crate::core::PointCloud;
+use crate::core::pipeline::{PreparedSurface, Progress, Stage, SurfaceConfig, prepare_surface};
+use crate::core::scene::{Scene, Timeline};
+use crate::core::solver::ExternalForces;
+
+use super::assets::{CloudAsset, SceneAsset};
+use super::components::{
+    DeformableSurface, DenseSurface, PreparationProgress, SceneTimeline, SimulationPoints,
+    SurfaceAnchors, SurfaceForces, SurfaceMasses, SurfaceMaterial, SurfaceNetwork, SurfacePressure,
+    SurfaceSource, SurfaceSprings, SurfaceStatus, SurfaceStepper,
+};
+
+/// The rayon pool surfaces are prepared in (see the module docs).
+#[derive(Resource, Clone)]
+pub struct PreparationPool(pub Arc<rayon::ThreadPool>);
+
+impl std::fmt::Debug for PreparationPool {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_tuple("PreparationPool")
+            .field(&self.0.current_num_threads())
+            .finish()
+    }
+}
+
+impl PreparationPool {
+    /// A pool with as many threads as Bevy's async compute pool (at least one).
+    pub fn matching_async_compute() -> Result<Self, rayon::ThreadPoolBuildError> {
+        let threads = AsyncComputeTaskPool::get().thread_num().max(1);
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .thread_name(|i| format!("point-springs prepare {i}"))
+            .build()?;
+        Ok(Self(Arc::new(pool)))
+    }
+}
+
+/// What a finished preparation hands over.
+struct Prepared {
+    surface: PreparedSurface,
+    timeline: Option<Timeline>,
+}
+
+/// Progress shared between a preparation task and the app.
+#[derive(Debug, Default)]
+struct Shared {
+    stage: AtomicU32,
+    fraction: AtomicU32,
+    cancel: AtomicBool,
+}
+
+const STAGES: [Stage; 4] = [
+    Stage::Normals,
+    Stage::Simplify,
+    Stage::Network,
+    Stage::Transfer,
+];
+
+impl Shared {
+    fn report(&self, p: Progress) -> ControlFlow<()> {
+        let stage = STAGES.iter().position(|&s| s == p.stage).unwrap_or(0);
+        self.stage.store(stage as u32, Ordering::Relaxed);
+        self.fraction.store(p.fraction.to_bits(), Ordering::Relaxed);
+        if self.cancel.load(Ordering::Relaxed) {
+            ControlFlow::Break(())
+        } else {
+            ControlFlow::Continue(())
+        }
+    }
+
+    fn progress(&self) -> PreparationProgress {
+        let stage = STAGES[(self.stage.load(Ordering::Relaxed) as usize).min(STAGES.len() - 1)];
+        PreparationProgress::at(stage, f32::from_bits(self.fraction.load(Ordering::Relaxed)))
+    }
+}
+
+/// A surface's preparation under way. Dropping it (the entity despawned, or the component
+/// removed) asks the pipeline to stop.
+#[derive(Component)]
+pub(crate) struct PreparationTask {
+    task: Task<Result<Prepared, String>>,
+    shared: Arc<Shared>,
+}
+
+impl Drop for PreparationTask {
+    fn drop(&mut self) {
+        self.shared.cancel.store(true, Ordering::Relaxed);
+    }
+}
+
+/// The cloud (and scene) of a surface, once the asset server has them.
+enum Inputs {
+    Ready(Box<(PointCloud, Option<Scene>)>),
+    Waiting,
+    Failed(String),
+}
+
+fn cloud_from_asset(
+    handle: &Handle<CloudAsset>,
+    server: Option<&AssetServer>,
+    clouds: Option<&Assets<CloudAsset>>,
+) -> Inputs {
+    if let Some(cloud) = clouds.and_then(|c| c.get(handle)) {
+        return Inputs::Ready(Box::new((cloud.0.clone(), None)));
+    }
+    match server.map(|s| s.load_state(handle)) {
+        None => Inputs::Failed("loading a file needs Bevy's AssetPlugin".to_owned()),
+        Some(LoadState::Failed(e)) => Inputs::Failed(e.to_string()),
+        Some(_) => Inputs::Waiting,
+    }
+}
+
+fn inputs(
+    source: &SurfaceSource,
+    server: Option<&AssetServer>,
+    scenes: Option<&Assets<SceneAsset>>,
+    clouds: Option<&Assets<CloudAsset>>,
+) -> Inputs {
+    match source {
+        SurfaceSource::Cloud(cloud) => Inputs::Ready(Box::new((PointCloud::clone(cloud), None))),
+        SurfaceSource::SceneData(data) => {
+            Inputs::Ready(Box::new((data.1.clone(), Some(data.0.clone()))))
+        }
+        SurfaceSource::CloudAsset(handle) => cloud_from_asset(handle, server, clouds),
+        SurfaceSource::Scene(handle) => {
+            let Some(scene) = scenes.and_then(|s| s.get(handle)) else {
+                return match server.map(|s| s.load_state(handle)) {
+                    None => Inputs::Failed("loading a scene needs Bevy's AssetPlugin".into()),
+                    Some(LoadState::Failed(e)) => Inputs::Failed(e.to_string()),
+                    Some(_) => Inputs::Waiting,
+                };
+            };
+            match cloud_from_asset(&scene.cloud, server, clouds) {
+                Inputs::Ready(found) => {
+                    Inputs::Ready(Box::new((found.0, Some(scene.scene.clone()))))
+                }
+                other => other,
+            }
+        }
+    }
+}
+
+/// Starts preparing surfaces whose status is `Pending` (or `Loading`, once their files
+/// are in).
+pub(crate) fn start_preparation(
+    mut commands: Commands,
+    pool: Option<Res<PreparationPool>>,
+    server: Option<Res<AssetServer>>,
+    scenes: Option<Res<Assets<SceneAsset>>>,
+    clouds: Option<Res<Assets<CloudAsset>>>,
+    mut surfaces: Query<(Entity, &mut DeformableSurface, &mut SurfaceStatus)>,
+) {
+    for (entity, mut surface, mut status) in &mut surfaces {
+        if !matches!(*status, SurfaceStatus::Pending | SurfaceStatus::Loading) {
+            continue;
+        }
+        let found = inputs(
+            &surface.source,
+            server.as_deref(),
+            scenes.as_deref(),
+            clouds.as_deref(),
+        );
+        let (cloud, scene) = match found {
+            Inputs::Ready(found) => *found,
+            Inputs::Waiting => {
+                status.set_if_neq(SurfaceStatus::Loading);
+                continue;
+            }
+            Inputs::Failed(message) => {
+                error!("point-springs surface {entity}: {message}");
+                *status = SurfaceStatus::Failed(message);
+                continue;
+            }
+        };
+        let pool = match &pool {
+            Some(pool) => PreparationPool::clone(pool),
+            None => match PreparationPool::matching_async_compute() {
+                Ok(pool) => {
+                    commands.insert_resource(pool.clone());
+                    pool
+                }
+                Err(e) => {
+                    *status = SurfaceStatus::Failed(format!("no thread pool: {e}"));
+                    continue;
+                }
+            },
+        };
+        if let Some(scene) = &scene {
+            surface.config = scene.surface_config();
+        }
+        let config = surface.config;
+        let shared = Arc::new(Shared::default());
+        let task_shared = shared.clone();
+        let task = AsyncComputeTaskPool::get().spawn(async move {
+            pool.0
+                .install(|| prepare(cloud, scene, &config, &task_shared))
+        });
+        commands.entity(entity).insert((
+            PreparationTask { task, shared },
+            PreparationProgress::at(Stage::Normals, 0.0),
+        ));
+        *status = SurfaceStatus::Preparing;
+    }
+}
+
+/// The job itself: the scene's preparation (pins and timeline included) or the plain
+/// pipeline.
+fn prepare(
+    cloud: PointCloud,
+    scene: Option<Scene>,
+    config: &SurfaceConfig,
+    shared: &Shared,
+) -> Result<Prepared, String> {
+    let mut progress = |p: Progress| shared.report(p);
+    match scene {
+        Some(scene) => scene
+            .prepare_cloud(cloud, &mut progress)
+            .map(|(surface, timeline)| Prepared {
+                surface,
+                timeline: Some(timeline),
+            })
+            .map_err(|e| e.to_string()),
+        None => prepare_surface(cloud, config, &mut progress)
+            .map(|surface| Prepared {
+                surface,
+                timeline: None,
+            })
+            .map_err(|e| e.to_string()),
+    }
+}
+
+/// Reports progress and collects finished preparations: the simulation's components go in,
+/// or the status says why it failed.
+pub(crate) fn finish_preparation(
+    mut commands: Commands,
+    mut surfaces: Query<(
+        Entity,
+        &mut PreparationTask,
+        &mut PreparationProgress,
+        &mut SurfaceStatus,
+    )>,
+) {
+    for (entity, mut task, mut progress, mut status) in &mut surfaces {
+        if *status != SurfaceStatus::Preparing {
+            // Set back to Pending (or failed elsewhere) while preparing: drop the job.
+            commands
+                .entity(entity)
+                .remove::<(PreparationTask, PreparationProgress)>();
+            continue;
+        }
+        progress.set_if_neq(task.shared.progress());
+        let Some(result) = check_ready(&mut task.task) else {
+            continue;
+        };
+        let mut entity_commands = commands.entity(entity);
+        entity_commands.remove::<(PreparationTask, PreparationProgress)>();
+        match result {
+            Ok(prepared) => {
+                insert_simulation(&mut entity_commands, prepared);
+                *status = SurfaceStatus::Ready;
+            }
+            Err(message) => {
+                error!("point-springs surface {entity}: {message}");
+                *status = SurfaceStatus::Failed(message);
+            }
+        }
+    }
+}
+
+/// Inserts the components of a prepared surface (replacing those of an earlier
+/// preparation).
+fn insert_simulation(entity: &mut EntityCommands, prepared: Prepared) {
+    let PreparedSurface {
+        config,
+        network,
+        solver,
+        dense,
+        ..
+    } = prepared.surface;
+    let points = solver.points.len();
+    entity.insert((
+        SimulationPoints(solver.points),
+        SurfaceMasses(solver.masses),
+        SurfaceSprings(solver.springs),
+        SurfaceAnchors(solver.anchors),
+        SurfaceForces(ExternalForces::zeros(points)),
+        SurfaceStepper(solver.stepper),
+        SurfaceMaterial::from(config.material),
+        SurfaceNetwork(Arc::new(network)),
+        DenseSurface(dense),
+    ));
+    match solver.pressure {
+        Some(pressure) => entity.insert(SurfacePressure(pressure)),
+        None => entity.remove::<SurfacePressure>(),
+    };
+    match prepared.timeline {
+        Some(timeline) => entity.insert(SceneTimeline(timeline)),
+        None => entity.remove::<SceneTimeline>(),
+    };
+}
