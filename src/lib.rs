@@ -37,6 +37,11 @@
 
 pub mod core;
 
+/// The README's code, compiled as doc tests (its game example needs the renderer).
+#[cfg(all(doctest, feature = "render"))]
+#[doc = include_str!("../README.md")]
+pub struct ReadmeDoctests;
+
 #[cfg(feature = "plugin")]
 pub mod plugin;
 

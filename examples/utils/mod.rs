@@ -3,8 +3,9 @@
 //! (under Xvfb).
 //!
 //! With `--frames N` time advances exactly one fixed tick (1/60 s) per rendered frame, and
-//! frames are counted from the moment every surface is prepared, so frame N shows the same
-//! moment of the simulation on every machine however slow its renderer or its preparation.
+//! frames are counted from the moment every surface is prepared (and held at rest for a
+//! warm-up while the renderer compiles its pipelines), so frame N shows the same moment of
+//! the simulation on every machine however slow its renderer or its preparation.
 
 use std::path::PathBuf;
 use std::time::Duration;
@@ -22,6 +23,10 @@ pub const WINDOW_SIZE: (u32, u32) = (1280, 720);
 /// Frames rendered (after preparation) before the screenshot when `--screenshot` is given
 /// without `--frames`.
 pub const DEFAULT_SCREENSHOT_FRAMES: u32 = 60;
+
+/// Scripted runs hold the prepared surfaces still for this many frames before counting,
+/// so that the renderer has compiled its pipelines (the first frames draw nothing).
+pub const WARMUP_FRAMES: u32 = 60;
 
 /// The fixed tick of the examples: the shipped scenes' step.
 pub const TICK_HZ: f64 = 60.0;
@@ -44,6 +49,8 @@ pub struct DemoArgs {
     pub frames: Option<u32>,
     /// Window size, pixels (default [`WINDOW_SIZE`]).
     pub size: Option<(u32, u32)>,
+    /// Start with the simulation points and springs shown.
+    pub gizmos: bool,
 }
 
 impl DemoArgs {
@@ -55,6 +62,7 @@ impl DemoArgs {
             match arg.as_str() {
                 "--screenshot" => args.screenshot = it.next().map(PathBuf::from),
                 "--frames" => args.frames = it.next().and_then(|n| n.parse().ok()),
+                "--gizmos" => args.gizmos = true,
                 "--size" => {
                     args.size = it.next().and_then(|s| {
                         let (w, h) = s.split_once('x')?;
@@ -62,7 +70,9 @@ impl DemoArgs {
                     });
                 }
                 "-h" | "--help" => {
-                    println!("options: [FILE] [--screenshot PATH.png] [--frames N] [--size WxH]");
+                    println!(
+                        "options: [FILE] [--screenshot PATH.png] [--frames N] [--size WxH] [--gizmos]"
+                    );
                     println!("mouse: right-drag orbits, wheel zooms");
                     println!("keys: space pauses, G cycles the spring gizmos, R restarts");
                     std::process::exit(0);
@@ -114,6 +124,13 @@ impl Plugin for DemoPlugin {
             Update,
             (orbit_camera, keys, show_status, screenshot_and_exit),
         );
+        if self.args.gizmos {
+            app.insert_resource(SpringGizmos {
+                points: true,
+                stretch: true,
+                bend: true,
+            });
+        }
         if self.args.scripted() {
             // Exactly one tick per frame.
             app.insert_resource(TimeUpdateStrategy::ManualDuration(Duration::from_secs_f64(
@@ -304,24 +321,42 @@ fn screenshot_and_exit(
     mut commands: Commands,
     args: Res<DemoArgs>,
     mut frames: ResMut<FramesSinceReady>,
-    surfaces: Query<&SurfaceStatus>,
+    mut surfaces: Query<(&SurfaceStatus, &mut SurfaceSettings)>,
+    mut warmup: Local<u32>,
     mut exit: MessageWriter<AppExit>,
 ) {
+    if !args.scripted() {
+        return;
+    }
     let prepared = !surfaces.is_empty()
         && surfaces
             .iter()
-            .all(|s| matches!(s, SurfaceStatus::Ready | SurfaceStatus::Failed(_)));
+            .all(|(s, _)| matches!(s, SurfaceStatus::Ready | SurfaceStatus::Failed(_)));
     let frame = match (&mut frames.0, prepared) {
         (Some(n), _) => {
             *n += 1;
             *n
         }
+        (None, true) if *warmup < WARMUP_FRAMES => {
+            // Held at rest while the renderer warms up.
+            *warmup += 1;
+            for (_, mut settings) in &mut surfaces {
+                settings.paused = *warmup < WARMUP_FRAMES;
+            }
+            return;
+        }
         (None, true) => {
-            // The frame whose tick took the first step.
+            // The first frame whose tick takes a step.
             frames.0 = Some(1);
             1
         }
-        (None, false) => return,
+        (None, false) => {
+            // Held still from the start, so that the first step is frame 1's.
+            for (_, mut settings) in &mut surfaces {
+                settings.paused = true;
+            }
+            return;
+        }
     };
     match (&args.screenshot, args.frames) {
         (Some(path), frames) if frame == frames.unwrap_or(DEFAULT_SCREENSHOT_FRAMES) => {

@@ -196,7 +196,7 @@ pub enum SceneError {
     /// The scene file is not a valid scene.
     #[error("{path}: {message}")]
     Parse {
-        /// The scene file (or "<string>").
+        /// The scene file (or `<string>`).
         path: PathBuf,
         /// RON's message, with line and column.
         message: String,

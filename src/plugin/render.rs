@@ -42,6 +42,9 @@ const HEXAGON_SCALE: f32 = 1.154_700_5;
 /// Smallest slot (surfels) a surface gets.
 const MIN_SLOT: usize = 64;
 
+/// Depth bias of the spring gizmos (−1 draws over everything, 0 is plain depth testing).
+const GIZMO_DEPTH_BIAS: f32 = -0.01;
+
 /// Adds surfel drawing and the spring gizmos. Needs Bevy's renderer (`DefaultPlugins`)
 /// and [`PointSpringsPlugin`](super::PointSpringsPlugin).
 #[derive(Debug, Default, Clone, Copy)]
@@ -55,7 +58,15 @@ impl Plugin for SurfelRenderPlugin {
             .register_type::<SpringGizmos>()
             .init_resource::<SurfelBatches>()
             .init_resource::<SpringGizmos>()
-            .init_gizmo_group::<SpringGizmos>()
+            // Springs are chords of the curved surface and dip under its discs: drawn with
+            // a depth bias so that the front ones show.
+            .insert_gizmo_config(
+                SpringGizmos::default(),
+                GizmoConfig {
+                    depth_bias: GIZMO_DEPTH_BIAS,
+                    ..default()
+                },
+            )
             .add_systems(
                 PostUpdate,
                 (attach_surfels, upload_surfels)
@@ -179,8 +190,6 @@ impl Batch {
 #[derive(Resource, Debug, Default)]
 pub struct SurfelBatches {
     batches: HashMap<LookKey, Batch>,
-    /// Scratch for packing a batch (kept to avoid an allocation per frame).
-    packed: Vec<u8>,
 }
 
 impl SurfelBatches {
@@ -279,8 +288,7 @@ fn attach_surfels(
             batch.members.retain(|m| m.0 != entity);
         }
         let size = slot_for(dense.len());
-        let SurfelBatches { batches, .. } = &mut *batches;
-        let batch = batches.entry(key).or_insert_with(|| {
+        let batch = batches.batches.entry(key).or_insert_with(|| {
             let buffer = buffers.add(ShaderBuffer::new(
                 &vec![0u8; SURFEL_BYTES * size],
                 RenderAssetUsages::RENDER_WORLD,
@@ -338,12 +346,11 @@ fn attach_surfels(
 
 /// Rewrites each batch's buffer where one of its surfaces changed.
 fn upload_surfels(
-    mut batches: ResMut<SurfelBatches>,
+    batches: Res<SurfelBatches>,
     mut buffers: ResMut<Assets<ShaderBuffer>>,
     mut surfaces: Query<(&DenseSurface, &mut SurfelSlot)>,
 ) {
-    let SurfelBatches { batches, packed } = &mut *batches;
-    for batch in batches.values() {
+    for batch in batches.batches.values() {
         let changed = batch.members.iter().any(|&(e, ..)| {
             surfaces
                 .get(e)
@@ -352,20 +359,21 @@ fn upload_surfels(
         if !changed {
             continue;
         }
-        packed.clear();
+        // A new buffer each frame: it is moved to the render world (one pass over the
+        // bytes; packing into a kept buffer and cloning it would be two).
+        let mut packed = Vec::with_capacity(batch.capacity * SURFEL_BYTES);
         for &(entity, first, _) in &batch.members {
             let Ok((dense, mut slot)) = surfaces.get_mut(entity) else {
                 continue;
             };
             // Unused surfels (radius 0) up to the slot's start draw nothing.
             packed.resize(first * SURFEL_BYTES, 0);
-            pack_surfels(dense.positions(), dense.normals(), &slot.radii, packed);
+            pack_surfels(dense.positions(), dense.normals(), &slot.radii, &mut packed);
             slot.uploaded = dense.revision();
         }
         packed.resize(batch.capacity * SURFEL_BYTES, 0);
         if let Some(mut buffer) = buffers.get_mut(&batch.buffer) {
-            // Moved to the render world on extraction, so a copy goes each time.
-            buffer.data = Some(packed.clone());
+            buffer.data = Some(packed);
         }
     }
 }

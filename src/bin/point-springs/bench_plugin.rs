@@ -13,6 +13,7 @@ use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
+use bevy::ecs::schedule::SingleThreadedExecutor;
 use bevy::prelude::*;
 use bevy::time::TimeUpdateStrategy;
 use bevy_point_springs::core::PointCloud;
@@ -22,7 +23,9 @@ use bevy_point_springs::core::scene::{Pull, Region, Scene, Timeline};
 use bevy_point_springs::core::shapes::fibonacci_sphere;
 use bevy_point_springs::core::simplify::SimplifyConfig;
 use bevy_point_springs::core::solver::{Integrator, SolverConfig, SpringMaterial};
-use bevy_point_springs::core::surfels::{DEFAULT_SURFEL_SCALE, pack_surfels, surfel_radii};
+use bevy_point_springs::core::surfels::{
+    DEFAULT_SURFEL_SCALE, SURFEL_BYTES, pack_surfels, surfel_radii,
+};
 use bevy_point_springs::prelude::{
     DeformableSurface, DenseSurface, PointSpringsPlugin, PointSpringsSystems, SurfaceStatus,
 };
@@ -47,6 +50,10 @@ pub struct PluginArgs {
     /// Ticks per block (the ECS and the core alternate in blocks).
     #[arg(long, default_value_t = 30)]
     block: usize,
+    /// Run the fixed schedule on Bevy's single-threaded executor instead of the
+    /// multi-threaded default (less dispatch cost per system when one surface is stepped).
+    #[arg(long)]
+    single_threaded: bool,
     /// Print JSON instead of text.
     #[arg(long)]
     json: bool,
@@ -64,6 +71,7 @@ const PREPARE_TIMEOUT: Duration = Duration::from_secs(600);
 #[derive(Serialize)]
 struct PluginReport {
     scene: String,
+    executor: &'static str,
     dense_points: usize,
     sim_points: usize,
     springs: usize,
@@ -146,7 +154,7 @@ fn mark<const I: usize>(mut clock: ResMut<Clock>) {
     }
 }
 
-fn ecs_app(dt: f32) -> App {
+fn ecs_app(dt: f32, single_threaded: bool) -> App {
     let tick = Duration::from_secs_f64(f64::from(dt));
     let mut app = App::new();
     app.add_plugins((MinimalPlugins, PointSpringsPlugin::default()))
@@ -166,6 +174,11 @@ fn ecs_app(dt: f32) -> App {
                 mark::<3>.after(PointSpringsSystems::Transfer),
             ),
         );
+    if single_threaded {
+        app.edit_schedule(FixedUpdate, |schedule| {
+            schedule.set_executor(SingleThreadedExecutor::new());
+        });
+    }
     app.finish();
     app.cleanup();
     app.update();
@@ -228,7 +241,7 @@ pub fn bench_plugin(args: &PluginArgs) -> Result<(), Failure> {
     };
 
     // The ECS: prepared in the background, then ticked.
-    let mut app = ecs_app(scene.dt);
+    let mut app = ecs_app(scene.dt, args.single_threaded);
     let start = Instant::now();
     let entity = app
         .world_mut()
@@ -271,7 +284,6 @@ pub fn bench_plugin(args: &PluginArgs) -> Result<(), Failure> {
         dense_of(&app, entity)?.transfer().rest_positions(),
         DEFAULT_SURFEL_SCALE,
     );
-    let mut packed = Vec::new();
     let (mut upload, mut core_seconds, mut core_ticks) = (0.0, 0.0, 0);
     // A warm-up block of each, untimed.
     for _ in 0..args.block {
@@ -285,9 +297,10 @@ pub fn bench_plugin(args: &PluginArgs) -> Result<(), Failure> {
             app.update();
             let dense = dense_of(&app, entity)?;
             let start = Instant::now();
-            packed.clear();
+            // As the renderer does: a new buffer each frame, moved to the render world.
+            let mut packed = Vec::with_capacity(dense.len() * SURFEL_BYTES);
             pack_surfels(dense.positions(), dense.normals(), &radii, &mut packed);
-            let handed_over = Arc::new(packed.clone());
+            let handed_over = Arc::new(packed);
             upload += start.elapsed().as_secs_f64();
             drop(handed_over);
         }
@@ -316,6 +329,11 @@ pub fn bench_plugin(args: &PluginArgs) -> Result<(), Failure> {
         && same(dense.normals(), core.surface.dense.normals());
     let report = PluginReport {
         scene: name,
+        executor: if args.single_threaded {
+            "single-threaded"
+        } else {
+            "multi-threaded"
+        },
         dense_points: dense.len(),
         sim_points: core.surface.solver.len(),
         springs: core.surface.solver.spring_count(),
@@ -336,8 +354,13 @@ pub fn bench_plugin(args: &PluginArgs) -> Result<(), Failure> {
         return print_json(&report);
     }
     println!(
-        "scene        {} ({} dense, {} simulation points, {} springs, {})",
-        report.scene, report.dense_points, report.sim_points, report.springs, report.integrator
+        "scene        {} ({} dense, {} simulation points, {} springs, {}; {} executor)",
+        report.scene,
+        report.dense_points,
+        report.sim_points,
+        report.springs,
+        report.integrator,
+        report.executor
     );
     println!(
         "prepare      {:.1} ms (in the background)",
