@@ -17,7 +17,7 @@ mod utils;
 
 use bevy::prelude::*;
 use bevy_point_springs::prelude::*;
-use utils::{DemoArgs, DemoPlugin, spawn_camera_and_light};
+use utils::{DemoArgs, DemoPlugin, prop_material, spawn_camera_and_light};
 
 fn main() -> AppExit {
     App::new()
@@ -45,11 +45,7 @@ fn setup(
     // The ring that holds the rim (the scene pins the band above y = -0.3).
     commands.spawn((
         Mesh3d(meshes.add(Torus::new(0.93, 1.03))),
-        MeshMaterial3d(materials.add(StandardMaterial {
-            base_color: Color::srgb(0.35, 0.38, 0.45),
-            perceptual_roughness: 0.5,
-            ..default()
-        })),
+        MeshMaterial3d(materials.add(prop_material())),
         Transform::from_xyz(0.0, -0.22, 0.0),
     ));
     spawn_camera_and_light(&mut commands, Vec3::new(0.0, -0.9, 0.0), 4.4, 0.6, 0.15);

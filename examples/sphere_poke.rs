@@ -16,7 +16,7 @@ mod utils;
 
 use bevy::prelude::*;
 use bevy_point_springs::prelude::*;
-use utils::{DemoArgs, DemoPlugin, spawn_camera_and_light};
+use utils::{DemoArgs, DemoPlugin, prop_material, spawn_camera_and_light};
 
 fn main() -> AppExit {
     App::new()
@@ -49,11 +49,7 @@ fn setup(
     // The cup: the scene pins every simulation point below y = -0.6.
     commands.spawn((
         Mesh3d(meshes.add(Torus::new(0.62, 0.86))),
-        MeshMaterial3d(materials.add(StandardMaterial {
-            base_color: Color::srgb(0.35, 0.38, 0.45),
-            perceptual_roughness: 0.5,
-            ..default()
-        })),
+        MeshMaterial3d(materials.add(prop_material())),
         Transform::from_xyz(0.0, -0.66, 0.0),
     ));
     commands.spawn((

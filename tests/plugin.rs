@@ -413,3 +413,27 @@ fn transfer_once_per_frame_when_asked() {
         assert!(!dense.follow(points).unwrap());
     }
 }
+
+#[test]
+fn a_material_changed_through_reflection_reaches_the_springs() {
+    use bevy::reflect::GetPath;
+    let mut app = create_app(&assets_dir(), TICK);
+    let e = app.world_mut().spawn(floating(1000, 100)).id();
+    settle(&mut app, &[e]);
+    let stretch_count = app.world().get::<SurfaceNetwork>(e).unwrap().stretch.len();
+    // An inspector edits the component by path, as reflection sees it.
+    {
+        let mut material = app.world_mut().get_mut::<SurfaceMaterial>(e).unwrap();
+        *material.path_mut::<f32>(".0.stretch_stiffness").unwrap() = 500.0;
+    }
+    app.update();
+    let springs = app.world().get::<SurfaceSprings>(e).unwrap();
+    let stiffness: Vec<(usize, f32)> = springs.iter().map(|(i, s)| (i, s.stiffness)).collect();
+    let bend = SpringMaterial::default().bend_stiffness;
+    assert!(stiffness.iter().all(|&(i, k)| if i < stretch_count {
+        k == 500.0
+    } else {
+        k == bend
+    }));
+    assert_eq!(status(&app, e), SurfaceStatus::Ready);
+}

@@ -140,6 +140,19 @@ impl Plugin for DemoPlugin {
     }
 }
 
+/// The material of the props around a surface (the cup, the ring).
+#[allow(
+    dead_code,
+    reason = "each example compiles its own copy of utils; view_cloud has no props"
+)]
+pub fn prop_material() -> StandardMaterial {
+    StandardMaterial {
+        base_color: Color::srgb(0.35, 0.38, 0.45),
+        perceptual_roughness: 0.5,
+        ..default()
+    }
+}
+
 /// A camera orbiting `target`: right-drag turns it, the wheel zooms.
 #[derive(Component, Debug, Clone, Copy)]
 pub struct OrbitCamera {

@@ -406,11 +406,6 @@ impl DenseCloud {
         self.inserted
     }
 
-    /// The resampling settings.
-    pub fn resample_config(&self) -> Option<ResampleConfig> {
-        self.resample
-    }
-
     /// The largest distance of a dense point from its rest position.
     pub fn max_displacement(&self) -> f32 {
         self.positions

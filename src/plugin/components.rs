@@ -20,6 +20,7 @@ use std::sync::Arc;
 
 use bevy::ecs::query::QueryData;
 use bevy::prelude::*;
+use bevy::reflect::reflect_remote;
 
 use crate::core::PointCloud;
 use crate::core::network::SpringNetwork;
@@ -207,11 +208,19 @@ pub struct SurfacePressure(pub Pressure);
 #[derive(Component, Debug, Clone, Default, Deref, DerefMut)]
 pub struct SurfaceStepper(pub Stepper);
 
-/// The surface's material. Changing it sets every spring's stiffness and damping anew.
-#[derive(Component, Debug, Clone, Copy, PartialEq, Reflect)]
+/// The surface's material ([`SpringMaterial`]: density, spring stiffness and damping).
+/// Changing it sets every spring's stiffness and damping anew (the masses stay those of the
+/// density it was prepared with).
+#[derive(Component, Debug, Clone, Copy, PartialEq, Reflect, Deref, DerefMut)]
 #[reflect(Component, Debug)]
-pub struct SurfaceMaterial {
-    /// Mass per unit area ρ (the masses are set when the surface is prepared).
+pub struct SurfaceMaterial(#[reflect(remote = SpringMaterialReflect)] pub SpringMaterial);
+
+/// How [`SpringMaterial`] (a core type, which knows nothing of Bevy) is reflected; the
+/// fields are checked against it when this compiles.
+#[reflect_remote(SpringMaterial)]
+#[derive(Debug)]
+pub struct SpringMaterialReflect {
+    /// Mass per unit area ρ.
     pub density: f32,
     /// Stiffness of stretch springs.
     pub stretch_stiffness: f32,
@@ -221,30 +230,6 @@ pub struct SurfaceMaterial {
     pub stretch_damping: f32,
     /// Damping of bend springs.
     pub bend_damping: f32,
-}
-
-impl From<SpringMaterial> for SurfaceMaterial {
-    fn from(m: SpringMaterial) -> Self {
-        Self {
-            density: m.density,
-            stretch_stiffness: m.stretch_stiffness,
-            bend_stiffness: m.bend_stiffness,
-            stretch_damping: m.stretch_damping,
-            bend_damping: m.bend_damping,
-        }
-    }
-}
-
-impl From<SurfaceMaterial> for SpringMaterial {
-    fn from(m: SurfaceMaterial) -> Self {
-        Self {
-            density: m.density,
-            stretch_stiffness: m.stretch_stiffness,
-            bend_stiffness: m.bend_stiffness,
-            stretch_damping: m.stretch_damping,
-            bend_damping: m.bend_damping,
-        }
-    }
 }
 
 /// The simulation points at rest: positions, normals, rings, springs and masses as §3–§4

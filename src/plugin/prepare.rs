@@ -307,7 +307,7 @@ fn insert_simulation(entity: &mut EntityCommands, prepared: Prepared) {
         SurfaceAnchors(solver.anchors),
         SurfaceForces(ExternalForces::zeros(points)),
         SurfaceStepper(solver.stepper),
-        SurfaceMaterial::from(config.material),
+        SurfaceMaterial(config.material),
         SurfaceNetwork(Arc::new(network)),
         DenseSurface(dense),
     ));

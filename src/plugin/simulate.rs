@@ -77,7 +77,7 @@ pub(crate) fn apply_materials(
     >,
 ) {
     for (entity, material, network, mut springs) in &mut surfaces {
-        let material = SpringMaterial::from(*material);
+        let material: SpringMaterial = material.0;
         let stretch = network.stretch.len();
         if let Err(e) = springs.set_parameters(|i| material.parameters(i, stretch)) {
             // Refused: the springs keep their old parameters and the surface runs on.

@@ -168,23 +168,9 @@ impl PointState {
         [&self.x.x, &self.x.y, &self.x.z]
     }
 
-    /// Velocities as three coordinate slices (no copy).
-    pub fn velocity_arrays(&self) -> [&[f32]; 3] {
-        [&self.v.x, &self.v.y, &self.v.z]
-    }
-
     /// Every position, in order, without gathering them into a vector first.
     pub fn iter_positions(&self) -> impl ExactSizeIterator<Item = Vec3> + '_ {
         (0..self.len()).map(|i| self.x.get(i))
-    }
-
-    /// The largest speed of any point.
-    pub fn max_speed(&self) -> f32 {
-        let v = &self.v;
-        (0..self.len())
-            .map(|i| v.x[i] * v.x[i] + v.y[i] * v.y[i] + v.z[i] * v.z[i])
-            .fold(0.0f32, f32::max)
-            .sqrt()
     }
 
     /// Moves point `i` (teleport; its velocity is kept).
@@ -573,33 +559,6 @@ impl ExternalForces {
         self.set(i, self.f.get(i) + f)
     }
 
-    /// Adds `f(position)` to every point's force (a field: wind, a magnet), given each
-    /// point's position. A non-finite result is refused and nothing changes.
-    pub fn add_field(
-        &mut self,
-        points: &PointState,
-        mut f: impl FnMut(usize, Vec3) -> Vec3,
-    ) -> Result<(), SolverError> {
-        if points.len() != self.len() {
-            return Err(SolverError::PointCountMismatch {
-                what: "external forces",
-                expected: points.len(),
-                found: self.len(),
-            });
-        }
-        let added: Vec<Vec3> = (0..self.len())
-            .map(|i| self.f.get(i) + f(i, points.position(i)))
-            .collect();
-        for (i, v) in added.iter().enumerate() {
-            check_vector(i, *v, "external force")?;
-        }
-        for (i, v) in added.into_iter().enumerate() {
-            self.f.set(i, v);
-        }
-        self.any = true;
-        Ok(())
-    }
-
     /// Sets every force to zero.
     pub fn clear(&mut self) {
         if self.any {
@@ -685,11 +644,6 @@ impl Pressure {
         self.rest_volume
     }
 
-    /// Number of triangles.
-    pub fn triangle_count(&self) -> usize {
-        self.triangles.len()
-    }
-
     /// The over-pressure at `points`.
     pub fn over_pressure(&self, points: &PointState) -> f64 {
         let v = self.volume(points).max(self.rest_volume * 1e-3);
@@ -721,5 +675,57 @@ impl Pressure {
             return f64::INFINITY;
         }
         k * (v - v0) - k * v0 * (v / v0).ln()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A regular tetrahedron around the origin, faces counter-clockwise from outside.
+    fn tetrahedron() -> (PointState, Vec<[u32; 3]>) {
+        let p = [
+            Vec3::new(1.0, 1.0, 1.0),
+            Vec3::new(1.0, -1.0, -1.0),
+            Vec3::new(-1.0, 1.0, -1.0),
+            Vec3::new(-1.0, -1.0, 1.0),
+        ];
+        let faces = vec![[0, 1, 2], [0, 3, 1], [0, 2, 3], [1, 3, 2]];
+        (PointState::new(&p).unwrap(), faces)
+    }
+
+    #[test]
+    fn pressure_pushes_along_the_volume_gradient() {
+        let (mut points, faces) = tetrahedron();
+        let gas = Pressure::new(faces.clone(), &points, 10.0).unwrap();
+        // The tetrahedron inscribed in the cube [-1, 1]³ holds a third of it.
+        assert!((gas.rest_volume() - 8.0 / 3.0).abs() < 1e-9);
+        // At rest: no over-pressure, no force.
+        let mut f = Soa3::zeros(4);
+        gas.accumulate(&points, &mut f);
+        assert!(f.to_vec3().iter().all(|v| v.length() < 1e-6));
+        // Squeezed: the force on a corner is ΔP times dV/dx (checked by finite differences).
+        points.set_position(0, Vec3::splat(0.5)).unwrap();
+        let mut f = Soa3::zeros(4);
+        gas.accumulate(&points, &mut f);
+        let dp = gas.over_pressure(&points);
+        assert!(dp > 0.0);
+        let h = 1e-3;
+        for axis in [Vec3::X, Vec3::Y, Vec3::Z] {
+            let (mut plus, mut minus) = (points.clone(), points.clone());
+            plus.set_position(0, Vec3::splat(0.5) + axis * h).unwrap();
+            minus.set_position(0, Vec3::splat(0.5) - axis * h).unwrap();
+            let grad = (gas.volume(&plus) - gas.volume(&minus)) / (2.0 * f64::from(h));
+            let along = f64::from(f.get(0).dot(axis));
+            assert!(
+                (along - dp * grad).abs() < 1e-3 * dp.abs().max(1.0),
+                "{along} vs {}",
+                dp * grad
+            );
+        }
+        // Inside out is no volume at all: refused.
+        let inverted: Vec<[u32; 3]> = faces.iter().map(|&[a, b, c]| [a, c, b]).collect();
+        let (rest, _) = tetrahedron();
+        assert!(Pressure::new(inverted, &rest, 10.0).is_err());
     }
 }
