@@ -67,6 +67,28 @@ pub struct ResampleConfig {
     pub interval: u32,
 }
 
+impl ResampleConfig {
+    /// Checks the settings.
+    pub fn validate(&self) -> Result<(), ResampleError> {
+        if !(self.factor > 1.0 && self.factor.is_finite()) {
+            return Err(ResampleError::InvalidConfig(
+                "the factor must be a finite number above 1",
+            ));
+        }
+        if !(self.max_new_per_point >= 0.0 && self.max_new_per_point.is_finite()) {
+            return Err(ResampleError::InvalidConfig(
+                "the cap on new points must be finite and not negative",
+            ));
+        }
+        if self.interval == 0 {
+            return Err(ResampleError::InvalidConfig(
+                "the interval must be at least one step",
+            ));
+        }
+        Ok(())
+    }
+}
+
 impl Default for ResampleConfig {
     fn default() -> Self {
         Self {
@@ -155,16 +177,7 @@ impl Resampler {
         displacements: &[Vec3],
         config: &ResampleConfig,
     ) -> Result<ResampleReport, ResampleError> {
-        if !(config.factor > 1.0 && config.factor.is_finite()) {
-            return Err(ResampleError::InvalidConfig(
-                "the factor must be a finite number above 1",
-            ));
-        }
-        if !(config.max_new_per_point >= 0.0 && config.max_new_per_point.is_finite()) {
-            return Err(ResampleError::InvalidConfig(
-                "the cap on new points must be finite and not negative",
-            ));
-        }
+        config.validate()?;
         transfer.check(displacements, &[])?;
         let displacements = &simd_displacements(displacements);
         let mut report = ResampleReport::default();

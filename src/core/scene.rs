@@ -304,19 +304,6 @@ impl Scene {
         if let Err(PrepareError::Invalid(message)) = self.surface_config().validate() {
             return Err(invalid(message));
         }
-        let s = &self.solver;
-        if !s.gravity.is_finite() {
-            return Err(invalid("solver.gravity must be finite"));
-        }
-        if !finite_non_negative(s.drag) {
-            return Err(invalid(format!(
-                "solver.drag must be finite and not negative, got {}",
-                s.drag
-            )));
-        }
-        if s.substeps == (crate::core::solver::SubstepPolicy::Auto { max_substeps: 0 }) {
-            return Err(invalid("solver.substeps needs max_substeps of at least 1"));
-        }
         for (i, pin) in self.pins.iter().enumerate() {
             if !pin.valid() {
                 return Err(invalid(format!(
@@ -686,7 +673,7 @@ mod tests {
             (
                 r#"(cloud: "a.ply", simplify: (target: Some(5)), dt: 0.1, steps: 5,
                     solver: (drag: -2.0))"#,
-                "solver.drag",
+                "solver: invalid solver setting: drag",
             ),
             (
                 r#"(cloud: "a.ply", simplify: (target: Some(5)), dt: 0.1, steps: 5,
@@ -696,7 +683,7 @@ mod tests {
             (
                 r#"(cloud: "a.ply", simplify: (target: Some(5)), dt: 0.1, steps: 5,
                     resample: Some((interval: 0)))"#,
-                "resample.interval",
+                "resample: invalid resampling setting: the interval",
             ),
         ];
         for (text, needle) in cases {

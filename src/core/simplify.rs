@@ -39,7 +39,6 @@ use std::ops::ControlFlow;
 
 use glam::Vec3;
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
-
 use rayon::prelude::*;
 
 use crate::core::cloud::PointCloud;

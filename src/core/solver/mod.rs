@@ -82,6 +82,7 @@ use glam::Vec3;
 
 use crate::core::network::SpringNetwork;
 
+use parts::non_negative;
 pub use parts::{Anchors, ExternalForces, Masses, PointState, Pressure, Springs};
 pub use springs::{COINCIDENT_DISTANCE, SpringSpec};
 pub use stepper::{Model, Stepper};
@@ -246,6 +247,39 @@ impl Default for SolverConfig {
             cg_max_iterations: DEFAULT_CG_MAX_ITERATIONS,
             guard: true,
         }
+    }
+}
+
+impl SolverConfig {
+    /// Checks the settings.
+    pub fn validate(&self) -> Result<(), SolverError> {
+        if !self.gravity.is_finite() {
+            return Err(SolverError::InvalidConfig("gravity must be finite"));
+        }
+        if !non_negative(self.drag) {
+            return Err(SolverError::InvalidConfig(
+                "drag must be finite and not negative",
+            ));
+        }
+        if !(self.stability_margin > 0.0 && self.stability_margin <= 1.0) {
+            return Err(SolverError::InvalidConfig(
+                "the stability margin must be in (0, 1]",
+            ));
+        }
+        if !(self.cg_tolerance > 0.0 && self.cg_tolerance < 1.0) {
+            return Err(SolverError::InvalidConfig(
+                "the CG tolerance must be in (0, 1)",
+            ));
+        }
+        if self.cg_max_iterations == 0 {
+            return Err(SolverError::InvalidConfig(
+                "CG needs at least one iteration",
+            ));
+        }
+        if self.substeps == (SubstepPolicy::Auto { max_substeps: 0 }) {
+            return Err(SolverError::InvalidConfig("at least one sub-step per step"));
+        }
+        Ok(())
     }
 }
 

@@ -13,9 +13,7 @@
 use glam::Vec3;
 
 use super::implicit;
-use super::parts::{
-    Anchors, ExternalForces, Masses, PointState, Pressure, Soa3, Springs, non_negative, sane,
-};
+use super::parts::{Anchors, ExternalForces, Masses, PointState, Pressure, Soa3, Springs, sane};
 use super::{
     DampingModel, Diagnostics, Energy, Integrator, SolverConfig, SolverError, Stability,
     StepReport, SubstepPolicy,
@@ -75,7 +73,7 @@ pub struct Stepper {
 impl Stepper {
     /// A stepper with `config` for `points` points.
     pub fn new(config: SolverConfig, points: usize) -> Result<Self, SolverError> {
-        check_config(&config)?;
+        config.validate()?;
         Ok(Self {
             config,
             fa: Soa3::zeros(points),
@@ -93,7 +91,7 @@ impl Stepper {
 
     /// Replaces the settings.
     pub fn set_config(&mut self, config: SolverConfig) -> Result<(), SolverError> {
-        check_config(&config)?;
+        config.validate()?;
         if config.integrator != self.config.integrator {
             self.implicit = implicit::Scratch::default();
         }
@@ -522,35 +520,4 @@ fn base_forces(fa: &mut [f32], v: &[f32], m: &[f32], g: f32, mu: f32) {
     for i in 0..n {
         fa[i] = m[i] * (g - mu * v[i]);
     }
-}
-
-/// Checks a solver's settings.
-pub(crate) fn check_config(c: &SolverConfig) -> Result<(), SolverError> {
-    if !c.gravity.is_finite() {
-        return Err(SolverError::InvalidConfig("gravity must be finite"));
-    }
-    if !non_negative(c.drag) {
-        return Err(SolverError::InvalidConfig(
-            "drag must be finite and not negative",
-        ));
-    }
-    if !(c.stability_margin > 0.0 && c.stability_margin <= 1.0) {
-        return Err(SolverError::InvalidConfig(
-            "the stability margin must be in (0, 1]",
-        ));
-    }
-    if !(c.cg_tolerance > 0.0 && c.cg_tolerance < 1.0) {
-        return Err(SolverError::InvalidConfig(
-            "the CG tolerance must be in (0, 1)",
-        ));
-    }
-    if c.cg_max_iterations == 0 {
-        return Err(SolverError::InvalidConfig(
-            "CG needs at least one iteration",
-        ));
-    }
-    if c.substeps == (SubstepPolicy::Auto { max_substeps: 0 }) {
-        return Err(SolverError::InvalidConfig("at least one sub-step per step"));
-    }
-    Ok(())
 }
