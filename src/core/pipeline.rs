@@ -291,7 +291,7 @@ pub fn prepare_surface(
             )));
         }
         solver.pressure = Some(Pressure::new(
-            network.triangles(),
+            network.triangles.clone(),
             &solver.points,
             stiffness,
         )?);

@@ -278,9 +278,18 @@ struct SimplifyReport {
     stop: &'static str,
     stretch_springs: usize,
     bend_springs: usize,
+    triangles: usize,
     boundary_points: usize,
     boundary_loops: usize,
+    closed: bool,
+    euler_characteristic: i64,
     components: usize,
+    non_manifold_edges: usize,
+    non_manifold_points: usize,
+    fold_overs: usize,
+    crossings: usize,
+    closing_triangles: usize,
+    isolated_points: usize,
     total_mass: f32,
     area: f32,
     min_diameter: Option<f32>,
@@ -592,9 +601,18 @@ fn run(command: Command) -> Result<(), Failure> {
                 },
                 stretch_springs: r.stretch_springs,
                 bend_springs: r.bend_springs,
+                triangles: r.triangles,
                 boundary_points: r.boundary_points,
                 boundary_loops: r.boundary_loops,
+                closed: r.closed,
+                euler_characteristic: r.euler_characteristic,
                 components: r.components,
+                non_manifold_edges: r.non_manifold_edges,
+                non_manifold_points: r.non_manifold_points,
+                fold_overs: r.fold_overs,
+                crossings: r.crossings,
+                closing_triangles: r.closing_triangles,
+                isolated_points: r.isolated_points,
                 total_mass: r.total_mass,
                 area: r.area,
                 min_diameter: finite(r.min_diameter),
@@ -620,8 +638,24 @@ fn run(command: Command) -> Result<(), Failure> {
                     report.stretch_springs, report.bend_springs
                 );
                 println!(
-                    "boundary      {} points in {} loop(s); {} component(s)",
-                    report.boundary_points, report.boundary_loops, report.components
+                    "surface       {}, Euler characteristic {}, {} triangles ({} closing holes), {} component(s)",
+                    if report.closed { "closed" } else { "open" },
+                    report.euler_characteristic,
+                    report.triangles,
+                    report.closing_triangles,
+                    report.components
+                );
+                println!(
+                    "boundary      {} points in {} loop(s)",
+                    report.boundary_points, report.boundary_loops
+                );
+                println!(
+                    "checks        {} fold-overs, {} crossing springs, {} non-manifold edges, {} pinched points, {} points without a triangle",
+                    report.fold_overs,
+                    report.crossings,
+                    report.non_manifold_edges,
+                    report.non_manifold_points,
+                    report.isolated_points
                 );
                 println!(
                     "mass          {} (ρ = {density}, area {})",

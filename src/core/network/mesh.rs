@@ -1,0 +1,494 @@
+//! The surface the springs lie on: the points' local Delaunay rings voted into one oriented
+//! triangle mesh, and the holes their disagreements leave closed.
+//!
+//! Local triangulations need not agree. j may be in i's ring while i is not in j's; around a
+//! cocircular quad each corner picks the diagonal that avoids itself; on a noisy scan or a thin
+//! part a neighbour projects to the wrong side. Taking the union of the rings' edges and
+//! cutting crossings (what this module replaced) leaves holes where they disagree. Instead:
+//!
+//! 1. **Candidates.** Every face (i, a, b) of every point's local ring, counter-clockwise
+//!    around i's normal. A triangle proposed by several of its corners gets that many votes.
+//! 2. **Selection.** Candidates are taken by votes (most first), then shortest longest edge,
+//!    each accepted when it keeps the mesh a locally embedded, consistently oriented surface.
+//!    At each of its three corners, projected on that corner's tangent plane, it must turn
+//!    counter-clockwise (its normal within 90° of the corner's normal: no fold-over), span
+//!    less than [`MAX_CORNER_ANGLE`], and overlap no triangle already at that corner (so no
+//!    two springs at a point cross, and no edge gets a third triangle); and none of its
+//!    directed edges may be in use (orientation stays consistent).
+//! 3. **Stragglers.** A point left without any triangle (inside a region its neighbours'
+//!    triangles already cover) is inserted by splitting the triangle it projects into.
+//! 4. **Closing.** A point whose own ring is closed (the paper's test says the surface goes
+//!    on all around it) but which is left with a gap between two of its triangles gets the
+//!    triangle across the gap (an *ear*), narrowest gap first, under the same tests, until no
+//!    ear fits; a gap too wide for one ear narrows as the ears at its other points are added.
+//!    A loop of boundary edges most of whose points are closable is a hole, and its other
+//!    points are closed too. Points on the surface's true boundary (their rings are open)
+//!    keep their gaps, so the hat keeps its rim and the letter B its counters. What the
+//!    strict tests leave is closed with ears that only keep the mesh a manifold, face within
+//!    90° of their corners' mean normal, and do not overlap at a corner whose tangent plane
+//!    they face within 60° of ([`MAX_CLOSING_ANGLE`]); where the surface curves sharply
+//!    between coarse points no triangle can face within 90° of all three corners' normals.
+//!
+//! Every triangle is stored once, counter-clockwise around the (consistently oriented) normals.
+
+use std::cmp::Reverse;
+use std::collections::BinaryHeap;
+use std::f32::consts::TAU;
+
+use glam::Vec3;
+
+use crate::core::knn::KnnGraph;
+
+/// Widest angle a triangle may span at any corner, in that corner's tangent plane (170°):
+/// wider ones are slivers whose orientation a small error can flip.
+pub const MAX_CORNER_ANGLE: f32 = 17.0 * std::f32::consts::PI / 18.0;
+
+/// Widest corner angle of a triangle that closes a hole (179°): any triangle that does not
+/// fold over (its normal within 90° of its corners' normals) is better than a hole.
+pub const MAX_CLOSING_ANGLE: f32 = 179.0 * std::f32::consts::PI / 180.0;
+
+/// A triangle facing further than this (cosine of 60°) from a corner's normal says nothing
+/// about overlaps in that corner's tangent plane.
+const STEEP_COS: f32 = 0.5;
+
+/// Rounds of ear closing (each retries every gap; later rounds add only a few ears).
+const MAX_CLOSING_ROUNDS: usize = 8;
+
+/// The part of a triangle at one of its corners: the sector it covers in the corner's tangent
+/// plane, counter-clockwise from one ring vertex to the next.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Wedge {
+    /// Ring vertex where the sector starts.
+    pub from: u32,
+    /// Ring vertex where it ends.
+    pub to: u32,
+    /// Angle of `from` in the corner's tangent plane.
+    start: f32,
+    /// Angle swept from `from` to `to`, in (0, [`MAX_CORNER_ANGLE`]).
+    sweep: f32,
+}
+
+/// How the mesh came about.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub(crate) struct MeshStats {
+    /// Distinct candidate triangles.
+    pub candidates: usize,
+    /// Candidates not proposed by all three of their corners.
+    pub disputed: usize,
+    /// Triangles added to close holes.
+    pub ears: usize,
+    /// Points without triangles inserted by splitting a triangle.
+    pub inserted: usize,
+}
+
+/// An oriented triangle mesh over the simulation points, stored as each point's sectors (a
+/// triangle is the three sectors at its corners).
+#[derive(Debug, Clone, Default)]
+pub(crate) struct SurfaceMesh {
+    /// Per point, the sectors of its triangles sorted by start angle.
+    pub wedges: Vec<Vec<Wedge>>,
+    /// How the mesh came about.
+    pub stats: MeshStats,
+}
+
+impl SurfaceMesh {
+    /// The triangles, each once (listed at its smallest corner), counter-clockwise around the
+    /// normals.
+    pub fn triangles(&self) -> Vec<[u32; 3]> {
+        let mut out = Vec::new();
+        for (v, wedges) in self.wedges.iter().enumerate() {
+            let v = v as u32;
+            out.extend(
+                wedges
+                    .iter()
+                    .filter(|w| v < w.from && v < w.to)
+                    .map(|w| [v, w.from, w.to]),
+            );
+        }
+        out
+    }
+
+    /// Whether point `v` has a gap between its triangles (or none at all): a boundary point.
+    pub fn is_open(&self, v: usize) -> bool {
+        let w = &self.wedges[v];
+        w.is_empty() || (0..w.len()).any(|i| w[i].to != w[(i + 1) % w.len()].from)
+    }
+
+    /// Whether point `v` has a triangle from ring vertex `a` to ring vertex `b`.
+    pub fn has_wedge(&self, v: usize, a: u32, b: u32) -> bool {
+        self.wedges[v].iter().any(|w| w.from == a && w.to == b)
+    }
+
+    /// Points where the surface pinches: two or more gaps between their triangles.
+    pub fn pinched_points(&self) -> usize {
+        (0..self.wedges.len())
+            .filter(|&v| self.gaps(v).nth(1).is_some())
+            .count()
+    }
+
+    /// The far corners of the two triangles at each inner edge, once from each end of the
+    /// edge: around a point, ring vertices r and r + 2.
+    pub fn wings(&self) -> impl Iterator<Item = (u32, u32)> + '_ {
+        self.wedges.iter().flat_map(|w| {
+            let m = w.len();
+            (0..m)
+                .filter(move |&i| m > 1 && w[i].to == w[(i + 1) % m].from)
+                .map(move |i| (w[i].from, w[(i + 1) % m].to))
+        })
+    }
+
+    /// Boundary loops: cycles of directed edges used by one triangle only, each as its points
+    /// in order. At a point where the surface pinches (two gaps), each loop turns into the gap
+    /// it arrived through.
+    pub fn boundary_loops(&self) -> Vec<Vec<u32>> {
+        // Boundary edge u → v: a wedge at v ends at u with a gap after it.
+        let mut visited: std::collections::HashSet<(u32, u32)> = Default::default();
+        let mut loops = Vec::new();
+        for v in 0..self.wedges.len() {
+            for (u, _) in self.gaps(v) {
+                if visited.contains(&(u, v as u32)) {
+                    continue;
+                }
+                // Walk: at v, the gap after u leads to x; the next edge is v → x.
+                let mut points = Vec::new();
+                let (mut from, mut at) = (u, v as u32);
+                while visited.insert((from, at)) {
+                    points.push(at);
+                    let Some(next) = self
+                        .gaps(at as usize)
+                        .find(|&(g, _)| g == from)
+                        .map(|(_, x)| x)
+                    else {
+                        break;
+                    };
+                    (from, at) = (at, next);
+                }
+                loops.push(points);
+            }
+        }
+        loops
+    }
+
+    /// The gaps at point `v` as (vertex before, vertex after), counter-clockwise.
+    fn gaps(&self, v: usize) -> impl Iterator<Item = (u32, u32)> + '_ {
+        let w = &self.wedges[v];
+        let m = w.len();
+        (0..m)
+            .map(move |i| (w[i].to, w[(i + 1) % m].from))
+            .filter(|(a, b)| a != b)
+    }
+}
+
+/// Builds the mesh from candidate triangles (each counter-clockwise around its proposer's
+/// normal), closing the gaps of the points marked `closable`.
+pub(crate) fn build_mesh(
+    positions: &[Vec3],
+    normals: &[Vec3],
+    graph: &KnnGraph,
+    candidates: Vec<[u32; 3]>,
+    closable: &[bool],
+) -> SurfaceMesh {
+    let mut b = Builder {
+        positions,
+        frames: normals.iter().map(|n| n.any_orthonormal_pair()).collect(),
+        limit: MAX_CORNER_ANGLE,
+        mesh: SurfaceMesh {
+            wedges: vec![Vec::new(); positions.len()],
+            ..SurfaceMesh::default()
+        },
+    };
+    b.select(candidates);
+    b.insert_stragglers(graph);
+    b.close(normals, closable);
+    b.mesh
+}
+
+struct Builder<'a> {
+    positions: &'a [Vec3],
+    /// Tangent basis of each point.
+    frames: Vec<(Vec3, Vec3)>,
+    /// Widest corner angle accepted now.
+    limit: f32,
+    mesh: SurfaceMesh,
+}
+
+impl Builder<'_> {
+    /// Angle of `u` around point `v` in `v`'s tangent plane.
+    fn angle(&self, v: u32, u: u32) -> f32 {
+        let d = self.positions[u as usize] - self.positions[v as usize];
+        let (t1, t2) = self.frames[v as usize];
+        d.dot(t2).atan2(d.dot(t1))
+    }
+
+    /// The sector triangle (v, x, y) would cover at `v`, when it turns counter-clockwise
+    /// there by less than [`MAX_CORNER_ANGLE`].
+    fn wedge(&self, v: u32, x: u32, y: u32) -> Option<Wedge> {
+        let start = self.angle(v, x);
+        let sweep = (self.angle(v, y) - start).rem_euclid(TAU);
+        (sweep > 0.0 && sweep < self.limit).then_some(Wedge {
+            from: x,
+            to: y,
+            start,
+            sweep,
+        })
+    }
+
+    /// The three sectors of triangle `t`, when it fits the mesh: see the module docs.
+    fn fit(&self, [a, b, c]: [u32; 3]) -> Option<[Wedge; 3]> {
+        if a == b || b == c || a == c {
+            return None;
+        }
+        let mut out = [None; 3];
+        for (slot, (v, x, y)) in [(a, b, c), (b, c, a), (c, a, b)].into_iter().enumerate() {
+            let w = self.wedge(v, x, y)?;
+            let taken = &self.mesh.wedges[v as usize];
+            if taken.iter().any(|o| o.from == x || overlaps(o, &w)) {
+                return None;
+            }
+            out[slot] = Some(w);
+        }
+        Some([out[0]?, out[1]?, out[2]?])
+    }
+
+    /// Adds triangle `t` when it fits.
+    fn try_add(&mut self, t: [u32; 3]) -> bool {
+        let Some(wedges) = self.fit(t) else {
+            return false;
+        };
+        for (v, w) in t.into_iter().zip(wedges) {
+            let list = &mut self.mesh.wedges[v as usize];
+            let at = list.partition_point(|o| o.start < w.start);
+            list.insert(at, w);
+        }
+        true
+    }
+
+    /// Removes triangle `t`.
+    fn remove(&mut self, [a, b, c]: [u32; 3]) {
+        for (v, x) in [(a, b), (b, c), (c, a)] {
+            self.mesh.wedges[v as usize].retain(|w| w.from != x);
+        }
+    }
+
+    /// Step 2: greedy selection by votes, then size.
+    fn select(&mut self, mut candidates: Vec<[u32; 3]>) {
+        // Same triangle, same orientation: the same rotation with the smallest index first.
+        for t in &mut candidates {
+            let r = (0..3).min_by_key(|&r| t[r]).unwrap_or(0);
+            t.rotate_left(r);
+        }
+        candidates.sort_unstable();
+        let mut voted: Vec<(Reverse<usize>, u32, [u32; 3])> = candidates
+            .chunk_by(|a, b| a == b)
+            .map(|group| {
+                let t = group[0];
+                let p = |i: u32| self.positions[i as usize];
+                let longest = [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])]
+                    .iter()
+                    .map(|&(x, y)| p(x).distance_squared(p(y)))
+                    .fold(0.0f32, f32::max);
+                (Reverse(group.len()), longest.to_bits(), t)
+            })
+            .collect();
+        voted.sort_unstable();
+        self.mesh.stats.candidates = voted.len();
+        self.mesh.stats.disputed = voted.iter().filter(|v| v.0.0 < 3).count();
+        for (_, _, t) in voted {
+            self.try_add(t);
+        }
+    }
+
+    /// Step 3: ears across the gaps of closable points, narrowest first. A loop most of whose
+    /// points are closable is a hole: its other points are closed too. First ears that pass
+    /// every test of the selection; then, for what is left, ears that only keep the mesh a
+    /// manifold and do not fold over (see [`Builder::add_ear`]).
+    fn close(&mut self, normals: &[Vec3], closable: &[bool]) {
+        self.limit = MAX_CLOSING_ANGLE;
+        let mut closable = closable.to_vec();
+        for strict in [true, false] {
+            for _ in 0..MAX_CLOSING_ROUNDS {
+                for points in self.mesh.boundary_loops() {
+                    let inner = points.iter().filter(|&&v| closable[v as usize]).count();
+                    if 2 * inner >= points.len() {
+                        for v in points {
+                            closable[v as usize] = true;
+                        }
+                    }
+                }
+                let mut queue: BinaryHeap<Reverse<(u32, u32, u32, u32)>> = BinaryHeap::new();
+                for v in (0..closable.len()).filter(|&v| closable[v]) {
+                    self.queue_gaps(v as u32, &mut queue);
+                }
+                let before = self.mesh.stats.ears;
+                while let Some(Reverse((_, v, u, x))) = queue.pop() {
+                    let added = if strict {
+                        self.try_add([v, u, x])
+                    } else {
+                        self.add_ear(normals, v, u, x)
+                    };
+                    if added {
+                        self.mesh.stats.ears += 1;
+                        for w in [v, u, x] {
+                            if closable[w as usize] {
+                                self.queue_gaps(w, &mut queue);
+                            }
+                        }
+                    }
+                }
+                if self.mesh.stats.ears == before {
+                    break;
+                }
+            }
+        }
+    }
+
+    /// Adds the ear (v, u, x) across the gap at `v` from `u` to `x`, where a hole's loop runs
+    /// u → v → x, when it keeps the mesh a manifold (the edge u → x is not in use) and does not
+    /// fold over: it turns counter-clockwise at `v` by less than [`MAX_CLOSING_ANGLE`] and its
+    /// normal is within 90° of the mean of its corners' normals. Where the surface curves
+    /// sharply between coarse points (a finger, an ear, a thin leg), no triangle across a hole
+    /// can face within 90° of all three corners' normals; tangent planes then say nothing about
+    /// overlaps at `u` and `x`, so the new sectors go into their fans by the loop's order, not
+    /// by angle.
+    fn add_ear(&mut self, normals: &[Vec3], v: u32, u: u32, x: u32) -> bool {
+        if self.wedge(v, u, x).is_none() || !self.ear_is_manifold(v, u, x) {
+            return false;
+        }
+        let p = |i: u32| self.positions[i as usize];
+        let normal = (p(u) - p(v)).cross(p(x) - p(v)).normalize_or_zero();
+        let mean = normals[v as usize] + normals[u as usize] + normals[x as usize];
+        if normal.dot(mean) <= 0.0 {
+            return false;
+        }
+        // Where the triangle faces within 60° of a side corner's normal, that corner's tangent
+        // plane is meaningful: the ear must not overlap its triangles there.
+        for (c, from, to) in [(u, x, v), (x, v, u)] {
+            if normal.dot(normals[c as usize]) > STEEP_COS {
+                let Some(w) = self.wedge(c, from, to) else {
+                    return false;
+                };
+                if self.mesh.wedges[c as usize].iter().any(|o| overlaps(o, &w)) {
+                    return false;
+                }
+            }
+        }
+        self.insert_ear(v, u, x)
+    }
+
+    /// Whether the ear (v, u, x) across the gap at `v` from `u` to `x` keeps the mesh a
+    /// manifold: that gap exists, no directed edge of the ear is in use, and where u and x are
+    /// joined already the ear closes the gap between them at both ends (anything else would
+    /// glue two sheets together at u or x).
+    fn ear_is_manifold(&self, v: u32, u: u32, x: u32) -> bool {
+        let fan = |p: u32| &self.mesh.wedges[p as usize];
+        let used = |a: u32, b: u32| fan(a).iter().any(|w| w.from == b);
+        if u == x || used(v, u) || used(u, x) || used(x, v) {
+            return false;
+        }
+        let (fv, fu, fx) = (fan(v), fan(u), fan(x));
+        let gap_at_v = (0..fv.len()).any(|i| fv[i].to == u && fv[(i + 1) % fv.len()].from == x);
+        let (Some(at_u), Some(at_x)) = (
+            fu.iter().position(|w| w.from == v),
+            fx.iter().position(|w| w.to == v),
+        ) else {
+            return false;
+        };
+        gap_at_v
+            && (!fu.iter().any(|w| w.to == x) || fu[(at_u + fu.len() - 1) % fu.len()].to == x)
+            && (!fx.iter().any(|w| w.from == u) || fx[(at_x + 1) % fx.len()].from == u)
+    }
+
+    /// Inserts the ear (v, u, x) (checked by [`Builder::ear_is_manifold`]) into the fans of its
+    /// corners by the loop's order.
+    fn insert_ear(&mut self, v: u32, u: u32, x: u32) -> bool {
+        let fan = |p: u32| &self.mesh.wedges[p as usize];
+        let (fv, fu, fx) = (fan(v), fan(u), fan(x));
+        let at_v = (0..fv.len()).find(|&i| fv[i].to == u && fv[(i + 1) % fv.len()].from == x);
+        let at_u = fu.iter().position(|w| w.from == v);
+        let at_x = fx.iter().position(|w| w.to == v);
+        let (Some(at_v), Some(at_u), Some(at_x)) = (at_v, at_u, at_x) else {
+            return false;
+        };
+        let (wv, wu, wx) = (
+            self.raw_wedge(v, u, x),
+            self.raw_wedge(u, x, v),
+            self.raw_wedge(x, v, u),
+        );
+        self.mesh.wedges[v as usize].insert(at_v + 1, wv);
+        self.mesh.wedges[u as usize].insert(at_u, wu);
+        self.mesh.wedges[x as usize].insert(at_x + 1, wx);
+        true
+    }
+
+    /// The sector of triangle (c, from, to) at `c`, whatever its angle.
+    fn raw_wedge(&self, c: u32, from: u32, to: u32) -> Wedge {
+        let start = self.angle(c, from);
+        Wedge {
+            from,
+            to,
+            start,
+            sweep: (self.angle(c, to) - start).rem_euclid(TAU),
+        }
+    }
+
+    /// Queues the ears across `v`'s gaps that are narrow enough, keyed by their angle.
+    fn queue_gaps(&self, v: u32, queue: &mut BinaryHeap<Reverse<(u32, u32, u32, u32)>>) {
+        let gaps: Vec<(u32, u32)> = self.mesh.gaps(v as usize).collect();
+        for (u, x) in gaps {
+            if let Some(w) = self.wedge(v, u, x) {
+                queue.push(Reverse((w.sweep.to_bits(), v, u, x)));
+            }
+        }
+    }
+
+    /// Step 4 (run before closing, while every sector is still sorted by angle): a point with
+    /// no triangle splits a triangle at one of its nearest neighbours that it projects into.
+    fn insert_stragglers(&mut self, graph: &KnnGraph) {
+        for v in 0..self.positions.len() as u32 {
+            if !self.mesh.wedges[v as usize].is_empty() {
+                continue;
+            }
+            let near: Vec<[u32; 3]> = graph
+                .neighbours(v as usize)
+                .iter()
+                .flat_map(|&j| {
+                    self.mesh.wedges[j as usize]
+                        .iter()
+                        .map(move |w| [j, w.from, w.to])
+                })
+                .take(STRAGGLER_TRIANGLES)
+                .collect();
+            for t @ [a, b, c] in near {
+                if !self.mesh.has_wedge(a as usize, b, c) {
+                    continue; // split already
+                }
+                self.remove(t);
+                let mut added = Vec::new();
+                for part in [[a, b, v], [b, c, v], [c, a, v]] {
+                    if !self.try_add(part) {
+                        break;
+                    }
+                    added.push(part);
+                }
+                if added.len() == 3 {
+                    self.mesh.stats.inserted += 1;
+                    break;
+                }
+                // Undo: drop what was added, put the triangle back.
+                for part in added {
+                    self.remove(part);
+                }
+                let restored = self.try_add(t);
+                debug_assert!(restored, "a removed triangle fits again");
+            }
+        }
+    }
+}
+
+/// Triangles near a straggler tried for its insertion.
+const STRAGGLER_TRIANGLES: usize = 8;
+
+/// Whether two sectors around the same point overlap (sharing an end is not overlapping).
+fn overlaps(a: &Wedge, b: &Wedge) -> bool {
+    (b.start - a.start).rem_euclid(TAU) < a.sweep || (a.start - b.start).rem_euclid(TAU) < b.sweep
+}

@@ -1,0 +1,574 @@
+//! The spring network on the simulation points (the paper's §4.1–4.2).
+//!
+//! 1. Each simulation point's [local Delaunay ring](crate::core::ring) among its k nearest
+//!    simulation points, counter-clockwise around its normal (the paper's construction).
+//! 2. **One surface.** Local triangulations need not agree, and where they disagree the union
+//!    of their edges has holes. The rings' faces are voted into one oriented triangle mesh,
+//!    and the gaps left at points whose own ring is closed are closed with ears (see
+//!    [`mesh`]): on a closed surface the result is closed (E = 3V − 6 on a sphere), and an open
+//!    surface keeps exactly its true boundary. No two springs at a point cross and no triangle
+//!    folds over (every triangle's normal is within 90° of its corners' normals).
+//! 3. **Springs.** Stretch springs along every edge of the mesh; bend springs between the far
+//!    corners of the two triangles at each inner edge (around a point, ring vertices r and
+//!    r + 2), minus pairs that already share a stretch spring. Rest lengths come from the rest
+//!    shape.
+//! 4. **Masses (eq 1).** m = ρ·area(R)/3, with R the point's triangles at the points' true 3D
+//!    positions (the tangent-plane projection would shrink curved regions by the cosine of
+//!    their tilt). Each triangle lies in three regions, so Σm = ρ·(area of the mesh).
+//!
+//! A point left with fewer than three springs (a straggler no triangle reached) is tied to
+//! its nearest simulation points until it has three; a point without a triangle gets the mean
+//! mass. The [report](NetworkReport) says how often either happened, whether the surface is
+//! closed, its Euler characteristic, and (checked independently of the construction) its
+//! fold-overs, crossing springs and non-manifold edges.
+
+use glam::Vec3;
+use rayon::prelude::*;
+
+use crate::core::knn::KnnIndex;
+use crate::core::normals::orient_normals;
+use crate::core::ring::{RingBuilder, RingShape};
+
+mod check;
+pub mod mesh;
+use crate::core::simplify::{MAX_SIMPLIFY_K, MIN_SIMPLIFY_K, MIN_SIMULATION_POINTS};
+
+/// Default surface density ρ (mass per unit area).
+pub const DEFAULT_DENSITY: f32 = 1.0;
+
+/// Fewest stretch springs a point gets.
+pub const MIN_STRETCH_SPRINGS: usize = 3;
+
+/// How to build a network.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NetworkConfig {
+    /// Neighbours per point for the rings (the paper's k).
+    pub k: usize,
+    /// Surface density ρ: mass per unit area.
+    pub density: f32,
+}
+
+impl Default for NetworkConfig {
+    fn default() -> Self {
+        Self {
+            k: crate::core::simplify::DEFAULT_SIMPLIFY_K,
+            density: DEFAULT_DENSITY,
+        }
+    }
+}
+
+/// Why a network could not be built.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum NetworkError {
+    /// k outside the accepted range.
+    #[error("k must be between {MIN_SIMPLIFY_K} and {MAX_SIMPLIFY_K}, got {0}")]
+    KOutOfRange(usize),
+    /// Density not a positive finite number.
+    #[error("the density must be a positive finite number, got {0}")]
+    InvalidDensity(f32),
+    /// Too few simulation points.
+    #[error("a spring network needs at least {needed} points, got {found}")]
+    TooFewPoints {
+        /// Points needed.
+        needed: usize,
+        /// Points given.
+        found: usize,
+    },
+    /// Positions and normals differ in length.
+    #[error("{positions} positions but {normals} normals")]
+    LengthMismatch {
+        /// Number of positions.
+        positions: usize,
+        /// Number of normals.
+        normals: usize,
+    },
+    /// A position or normal is not finite, or a normal is zero.
+    #[error("point {0} has a non-finite position or a zero or non-finite normal")]
+    InvalidPoint(usize),
+    /// Two simulation points coincide (a spring between them would have no length).
+    #[error(
+        "simulation points {0} and {1} coincide; simplify the cloud first (it removes duplicates)"
+    )]
+    CoincidentPoints(u32, u32),
+    /// No point has a surface neighbourhood.
+    #[error("no point has a surface neighbourhood (all points collinear or coincident)")]
+    NotASurface,
+    /// Point indices are stored in 32 bits.
+    #[error("a network supports at most 2^32 - 1 points, got {0}")]
+    TooManyPoints(usize),
+}
+
+/// A spring between two simulation points.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Spring {
+    /// First point (the smaller index).
+    pub a: u32,
+    /// Second point.
+    pub b: u32,
+    /// Natural length l⁰ (eq 2), the distance in the rest shape.
+    pub rest_length: f32,
+}
+
+/// Counts and measures of a network.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct NetworkReport {
+    /// Simulation points.
+    pub points: usize,
+    /// Stretch springs.
+    pub stretch_springs: usize,
+    /// Bend springs.
+    pub bend_springs: usize,
+    /// Triangles of the mesh the springs lie on.
+    pub triangles: usize,
+    /// Points with a gap between their triangles (or no triangle): boundary points.
+    pub boundary_points: usize,
+    /// Closed chains of boundary edges (holes and outer rims).
+    pub boundary_loops: usize,
+    /// No boundary point and no non-manifold edge: the network is a watertight surface.
+    pub closed: bool,
+    /// V − E + F of the mesh (2 for a closed surface of genus 0, 1 for a disc).
+    pub euler_characteristic: i64,
+    /// Connected components of the stretch springs.
+    pub components: usize,
+    /// Edges with more than two triangles, or two triangles on the same side (always 0; a
+    /// check of the construction).
+    pub non_manifold_edges: usize,
+    /// Points where the surface pinches: two or more gaps between their triangles.
+    pub non_manifold_points: usize,
+    /// Triangles whose normal is 90° or more from a corner's normal (always 0; a check).
+    pub fold_overs: usize,
+    /// Pairs of springs that cross in the tangent plane of a point next to all four ends
+    /// (always 0; a check).
+    pub crossings: usize,
+    /// Σm.
+    pub total_mass: f32,
+    /// Σ area(R)/3: the surface area the masses stand for (the mesh's area).
+    pub area: f32,
+    /// Smallest region diameter d.
+    pub min_diameter: f32,
+    /// Largest region diameter d.
+    pub max_diameter: f32,
+    /// Distinct triangles the local rings proposed.
+    pub candidates: usize,
+    /// Of those, triangles not proposed by all three of their corners (rings disagreeing).
+    pub disputed_candidates: usize,
+    /// Triangles added to close holes the rings left.
+    pub closing_triangles: usize,
+    /// Points without a triangle inserted by splitting a triangle.
+    pub inserted_points: usize,
+    /// Points left without any triangle.
+    pub isolated_points: usize,
+    /// Springs added to give stragglers [`MIN_STRETCH_SPRINGS`].
+    pub fallback_springs: usize,
+    /// Points without a triangle that got the mean mass.
+    pub fallback_masses: usize,
+}
+
+/// Simulation points with their springs and masses: the rest state of a deformable surface.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct SpringNetwork {
+    /// Rest positions.
+    pub positions: Vec<Vec3>,
+    /// Rest normals (unit).
+    pub normals: Vec<Vec3>,
+    /// Masses (eq 1), all positive.
+    pub masses: Vec<f32>,
+    /// Stretch springs: each point to its ring.
+    pub stretch: Vec<Spring>,
+    /// Bend springs: ring vertex r to ring vertex r + 2.
+    pub bend: Vec<Spring>,
+    /// The triangles the springs lie on, counter-clockwise around the normals (outward on a
+    /// closed surface with outward normals).
+    pub triangles: Vec<[u32; 3]>,
+    /// Whether each point's ring is open.
+    pub boundary: Vec<bool>,
+    /// Ring of point i: `ring_indices[ring_offsets[i]..ring_offsets[i + 1]]`, CCW around its
+    /// normal, starting after the gap for boundary points.
+    pub ring_offsets: Vec<u32>,
+    /// See `ring_offsets`.
+    pub ring_indices: Vec<u32>,
+    /// Counts and measures.
+    pub report: NetworkReport,
+}
+
+impl SpringNetwork {
+    /// The consistent ring of point `i`.
+    pub fn ring(&self, i: usize) -> &[u32] {
+        &self.ring_indices[self.ring_offsets[i] as usize..self.ring_offsets[i + 1] as usize]
+    }
+
+    /// Number of simulation points.
+    pub fn len(&self) -> usize {
+        self.positions.len()
+    }
+
+    /// Whether the network is empty.
+    pub fn is_empty(&self) -> bool {
+        self.positions.is_empty()
+    }
+}
+
+/// Builds the spring network on simulation points with consistently oriented unit normals
+/// (as [`ensure_normals`](crate::core::normals::ensure_normals) gives; normals whose signs
+/// disagree between neighbours are oriented first).
+pub fn build_network(
+    positions: &[Vec3],
+    normals: &[Vec3],
+    config: &NetworkConfig,
+) -> Result<SpringNetwork, NetworkError> {
+    validate(positions, normals, config)?;
+    let n = positions.len();
+    let k = config.k.min(n - 1);
+    let normals: Vec<Vec3> = normals.iter().map(|v| v.normalize()).collect();
+    let index = KnnIndex::build(positions);
+    let graph = index.knn_graph(positions, k);
+    let oriented = oriented_normals(positions, &normals, &graph)?;
+
+    // 1. Local rings, and their faces as candidate triangles.
+    let local: Vec<(RingShape, Vec<(u32, bool)>)> = (0..n)
+        .into_par_iter()
+        .with_min_len(256)
+        .map_init(
+            || (RingBuilder::new(), Vec::with_capacity(k)),
+            |(builder, scratch), i| {
+                let row = graph.neighbours(i);
+                scratch.clear();
+                scratch.extend(row.iter().map(|&j| positions[j as usize]));
+                let mut ring = Vec::new();
+                let shape = builder.build(positions[i], oriented[i], scratch, Some(&mut ring));
+                let ring = ring
+                    .into_iter()
+                    .map(|(slot, face)| (row[slot as usize], face))
+                    .collect();
+                (shape, ring)
+            },
+        )
+        .collect();
+    if let Some(i) = local.iter().position(|(s, _)| s.coincident) {
+        let j = graph
+            .neighbours(i)
+            .iter()
+            .copied()
+            .find(|&j| positions[j as usize] == positions[i])
+            .unwrap_or(graph.neighbours(i)[0]);
+        return Err(NetworkError::CoincidentPoints(
+            (i as u32).min(j),
+            (i as u32).max(j),
+        ));
+    }
+    if local.iter().all(|(s, _)| s.degenerate) {
+        return Err(NetworkError::NotASurface);
+    }
+    let mut candidates = Vec::new();
+    for (i, (_, ring)) in local.iter().enumerate() {
+        let m = ring.len();
+        for (r, &(a, face)) in ring.iter().enumerate() {
+            if face && m > 1 {
+                candidates.push([i as u32, a, ring[(r + 1) % m].0]);
+            }
+        }
+    }
+    let closable: Vec<bool> = local
+        .iter()
+        .map(|(s, _)| !s.open && !s.degenerate)
+        .collect();
+
+    // 2–3. One oriented mesh from the rings, holes closed.
+    let mesh = mesh::build_mesh(positions, &oriented, &graph, candidates, &closable);
+    let triangles = mesh.triangles();
+    let mut edges: Vec<(u32, u32)> = triangles
+        .iter()
+        .flat_map(|&[a, b, c]| [key(a, b), key(b, c), key(c, a)])
+        .collect();
+    edges.par_sort_unstable();
+    edges.dedup();
+    let mesh_edges = edges.len();
+
+    // Stragglers: tie to the nearest points until MIN_STRETCH_SPRINGS.
+    let mut adjacency = Adjacency::new(n, &edges);
+    let mut degree: Vec<usize> = (0..n).map(|i| adjacency.degree(i)).collect();
+    let mut added: Vec<(u32, u32)> = Vec::new();
+    let mut added_set: std::collections::HashSet<(u32, u32)> = std::collections::HashSet::new();
+    for i in 0..n {
+        for &j in graph.neighbours(i) {
+            if degree[i] >= MIN_STRETCH_SPRINGS {
+                break;
+            }
+            let e = key(i as u32, j);
+            if !adjacency.neighbours(i).contains(&j) && added_set.insert(e) {
+                added.push(e);
+                degree[i] += 1;
+                degree[j as usize] += 1;
+            }
+        }
+    }
+    let fallback_springs = added.len();
+    if !added.is_empty() {
+        edges.extend(added);
+        edges.sort_unstable();
+        adjacency = Adjacency::new(n, &edges);
+    }
+
+    // Rings, CCW around each point's own normal, starting after the widest gap.
+    let rings: Vec<Vec<u32>> = (0..n)
+        .into_par_iter()
+        .with_min_len(256)
+        .map(|i| final_ring(positions, normals[i], i, adjacency.neighbours(i), &mesh))
+        .collect();
+    let boundary: Vec<bool> = (0..n).map(|i| mesh.is_open(i)).collect();
+
+    // 4. Masses: a third of each triangle's area to each corner.
+    let mut areas = vec![0.0f64; n];
+    for &[a, b, c] in &triangles {
+        let p = |i: u32| positions[i as usize];
+        let third = f64::from((p(b) - p(a)).cross(p(c) - p(a)).length()) / 6.0;
+        for v in [a, b, c] {
+            areas[v as usize] += third;
+        }
+    }
+    let positive: Vec<f64> = areas.iter().copied().filter(|a| *a > 0.0).collect();
+    if positive.is_empty() {
+        return Err(NetworkError::NotASurface);
+    }
+    let mean_area = positive.iter().sum::<f64>() / positive.len() as f64;
+    let fallback_masses = areas.len() - positive.len();
+    let masses: Vec<f32> = areas
+        .iter()
+        .map(|&a| config.density * (if a > 0.0 { a } else { mean_area }) as f32)
+        .collect();
+
+    // Springs: stretch along every edge; bend between the far corners of the two triangles
+    // at each inner edge (ring vertices r and r + 2 around either end).
+    let length = |a: u32, b: u32| positions[a as usize].distance(positions[b as usize]);
+    let spring = |(a, b): (u32, u32)| Spring {
+        a,
+        b,
+        rest_length: length(a, b),
+    };
+    let stretch: Vec<Spring> = edges.iter().copied().map(spring).collect();
+    let mut bend_pairs: Vec<(u32, u32)> = mesh
+        .wings()
+        .filter(|&(a, b)| a != b && edges.binary_search(&key(a, b)).is_err())
+        .map(|(a, b)| key(a, b))
+        .collect();
+    bend_pairs.sort_unstable();
+    bend_pairs.dedup();
+    let bend: Vec<Spring> = bend_pairs.into_iter().map(spring).collect();
+
+    // Report.
+    let finite_d = || {
+        local
+            .iter()
+            .map(|(s, _)| s.diameter)
+            .filter(|d| d.is_finite())
+    };
+    let check = check::check(positions, &oriented, &triangles, &adjacency);
+    let boundary_points = boundary.iter().filter(|b| **b).count();
+    let isolated_points = mesh.wedges.iter().filter(|w| w.is_empty()).count();
+    let boundary_loops = mesh.boundary_loops().len();
+    let euler_characteristic = n as i64 - mesh_edges as i64 + triangles.len() as i64;
+    let report = NetworkReport {
+        points: n,
+        stretch_springs: stretch.len(),
+        bend_springs: bend.len(),
+        triangles: triangles.len(),
+        boundary_points,
+        boundary_loops,
+        closed: boundary_points == 0 && check.non_manifold_edges == 0,
+        euler_characteristic,
+        components: count_components(n, edges.iter().copied()),
+        non_manifold_edges: check.non_manifold_edges,
+        non_manifold_points: mesh.pinched_points(),
+        fold_overs: check.fold_overs,
+        crossings: check.crossings,
+        total_mass: masses.iter().map(|m| f64::from(*m)).sum::<f64>() as f32,
+        area: areas.iter().sum::<f64>() as f32,
+        min_diameter: finite_d().fold(f32::INFINITY, f32::min),
+        max_diameter: finite_d().fold(0.0, f32::max),
+        candidates: mesh.stats.candidates,
+        disputed_candidates: mesh.stats.disputed,
+        closing_triangles: mesh.stats.ears,
+        inserted_points: mesh.stats.inserted,
+        isolated_points,
+        fallback_springs,
+        fallback_masses,
+    };
+    let mut ring_offsets = Vec::with_capacity(n + 1);
+    ring_offsets.push(0u32);
+    let mut ring_indices = Vec::new();
+    for ring in &rings {
+        ring_indices.extend_from_slice(ring);
+        ring_offsets.push(ring_indices.len() as u32);
+    }
+    Ok(SpringNetwork {
+        positions: positions.to_vec(),
+        normals,
+        masses,
+        stretch,
+        bend,
+        triangles,
+        boundary,
+        ring_offsets,
+        ring_indices,
+        report,
+    })
+}
+
+/// Knn pairs whose normals may point apart before orientation is redone: a consistently
+/// oriented surface has almost none (the two faces of a thin part are not nearest neighbours
+/// of each other at the levels simplification keeps).
+const MAX_DISAGREEING_NORMALS: f64 = 0.05;
+
+/// The normals the mesh is built around: `normals` when neighbours agree on their signs,
+/// otherwise oriented over the k-NN graph ([`orient_normals`]).
+fn oriented_normals(
+    positions: &[Vec3],
+    normals: &[Vec3],
+    graph: &crate::core::knn::KnnGraph,
+) -> Result<Vec<Vec3>, NetworkError> {
+    let n = positions.len();
+    let near = graph.k().min(3);
+    let disagree = (0..n)
+        .flat_map(|i| graph.neighbours(i)[..near].iter().map(move |&j| (i, j)))
+        .filter(|&(i, j)| normals[i].dot(normals[j as usize]) < 0.0)
+        .count();
+    let mut oriented = normals.to_vec();
+    if disagree as f64 > MAX_DISAGREEING_NORMALS * (n * near) as f64 {
+        orient_normals(positions, &mut oriented, graph)
+            .map_err(|_| NetworkError::TooManyPoints(n))?;
+    }
+    Ok(oriented)
+}
+
+fn validate(
+    positions: &[Vec3],
+    normals: &[Vec3],
+    config: &NetworkConfig,
+) -> Result<(), NetworkError> {
+    if !(MIN_SIMPLIFY_K..=MAX_SIMPLIFY_K).contains(&config.k) {
+        return Err(NetworkError::KOutOfRange(config.k));
+    }
+    if !(config.density > 0.0 && config.density.is_finite()) {
+        return Err(NetworkError::InvalidDensity(config.density));
+    }
+    if positions.len() != normals.len() {
+        return Err(NetworkError::LengthMismatch {
+            positions: positions.len(),
+            normals: normals.len(),
+        });
+    }
+    if positions.len() >= u32::MAX as usize {
+        return Err(NetworkError::TooManyPoints(positions.len()));
+    }
+    let needed = MIN_SIMULATION_POINTS;
+    if positions.len() < needed {
+        return Err(NetworkError::TooFewPoints {
+            needed,
+            found: positions.len(),
+        });
+    }
+    if let Some(i) = positions
+        .iter()
+        .zip(normals)
+        .position(|(p, n)| !p.is_finite() || !n.is_finite() || n.length_squared() == 0.0)
+    {
+        return Err(NetworkError::InvalidPoint(i));
+    }
+    Ok(())
+}
+
+/// An undirected edge as (smaller, larger).
+fn key(a: u32, b: u32) -> (u32, u32) {
+    (a.min(b), a.max(b))
+}
+
+/// Neighbour lists of an undirected edge set.
+struct Adjacency {
+    offsets: Vec<u32>,
+    targets: Vec<u32>,
+}
+
+impl Adjacency {
+    fn new(n: usize, edges: &[(u32, u32)]) -> Self {
+        let mut offsets = vec![0u32; n + 1];
+        for &(a, b) in edges {
+            offsets[a as usize + 1] += 1;
+            offsets[b as usize + 1] += 1;
+        }
+        for i in 0..n {
+            offsets[i + 1] += offsets[i];
+        }
+        let mut fill = offsets.clone();
+        let mut targets = vec![0u32; offsets[n] as usize];
+        for &(a, b) in edges {
+            targets[fill[a as usize] as usize] = b;
+            fill[a as usize] += 1;
+            targets[fill[b as usize] as usize] = a;
+            fill[b as usize] += 1;
+        }
+        Self { offsets, targets }
+    }
+
+    fn neighbours(&self, i: usize) -> &[u32] {
+        &self.targets[self.offsets[i] as usize..self.offsets[i + 1] as usize]
+    }
+
+    fn degree(&self, i: usize) -> usize {
+        self.neighbours(i).len()
+    }
+}
+
+/// The ring of point `i`: its `neighbours` sorted counter-clockwise around `normal`, starting
+/// after the widest sector that is not one of the mesh's triangles when there is one.
+fn final_ring(
+    positions: &[Vec3],
+    normal: Vec3,
+    i: usize,
+    neighbours: &[u32],
+    mesh: &mesh::SurfaceMesh,
+) -> Vec<u32> {
+    let centre = positions[i];
+    let (t1, t2) = normal.any_orthonormal_pair();
+    let angle = |j: u32| {
+        let v = positions[j as usize] - centre;
+        v.dot(t2).atan2(v.dot(t1))
+    };
+    let mut by_angle: Vec<(f32, u32)> = neighbours.iter().map(|&j| (angle(j), j)).collect();
+    by_angle.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+    let m = by_angle.len();
+    let gap = |r: usize| {
+        let (a, b) = (by_angle[r].1, by_angle[(r + 1) % m].1);
+        if mesh.has_wedge(i, a, b) || mesh.has_wedge(i, b, a) {
+            None
+        } else {
+            Some((by_angle[(r + 1) % m].0 - by_angle[r].0).rem_euclid(std::f32::consts::TAU))
+        }
+    };
+    let start = (0..m)
+        .filter_map(|r| gap(r).map(|g| (g, r)))
+        .max_by(|a, b| a.0.total_cmp(&b.0).then(b.1.cmp(&a.1)))
+        .map_or(0, |(_, r)| (r + 1) % m);
+    (0..m).map(|r| by_angle[(start + r) % m].1).collect()
+}
+
+/// Connected components of `n` points joined by `edges` (union-find).
+fn count_components(n: usize, edges: impl Iterator<Item = (u32, u32)>) -> usize {
+    let mut parent: Vec<u32> = (0..n as u32).collect();
+    fn find(parent: &mut [u32], mut x: u32) -> u32 {
+        while parent[x as usize] != x {
+            let up = parent[parent[x as usize] as usize];
+            parent[x as usize] = up;
+            x = up;
+        }
+        x
+    }
+    let mut components = n;
+    for (a, b) in edges {
+        let (ra, rb) = (find(&mut parent, a), find(&mut parent, b));
+        if ra != rb {
+            parent[ra.max(rb) as usize] = ra.min(rb);
+            components -= 1;
+        }
+    }
+    components
+}
