@@ -146,6 +146,15 @@ fn simplify_writes_simulation_points_and_reports_the_network() {
     assert_eq!(v["sim_points"], 120);
     assert_eq!(v["components"], 1);
     assert_eq!(v["boundary_points"], 0);
+    // Watertightness stated plainly.
+    assert_eq!(v["closed"], true);
+    assert_eq!(v["euler_characteristic"], 2);
+    assert_eq!(v["boundary_loops"], 0);
+    assert_eq!(
+        (v["fold_overs"].as_u64(), v["crossings"].as_u64()),
+        (Some(0), Some(0))
+    );
+    assert_eq!(v["denoised"], false);
     // A closed triangulated surface: E = 3V − 6.
     assert_eq!(v["stretch_springs"], 3 * 120 - 6);
     let written = read_cloud(&output, None).unwrap();
@@ -369,4 +378,50 @@ fn bench_transfer_reports_speed_and_error() {
     assert!(ours < 0.01 && ours < literal, "{ours} vs {literal}");
     let out = run(&["bench", "transfer", "--points", "100", "--sim", "200"]);
     assert_eq!(out.status.code(), Some(2));
+}
+
+#[test]
+fn bench_network_reports_each_level() {
+    let hat = scratch("hat.ply");
+    run_ok(&[
+        "generate",
+        "hat",
+        "--points",
+        "2000",
+        "--noise",
+        "0.5",
+        "-o",
+        hat.to_str().unwrap(),
+    ]);
+    let sphere = asset("sphere926.pwn");
+    let v = run_json(&[
+        "bench",
+        "network",
+        sphere.to_str().unwrap(),
+        hat.to_str().unwrap(),
+        "--levels",
+        "5,20",
+        "--json",
+    ]);
+    let rows = v.as_array().expect("one row per cloud and level");
+    assert_eq!(rows.len(), 4);
+    for row in &rows[..2] {
+        assert_eq!(row["closed"], true, "{row}");
+        assert_eq!(row["euler_characteristic"], 2, "{row}");
+    }
+    // The noisy hat: decided on local fits, one boundary loop (its rim), a disc (χ = 1).
+    for row in &rows[2..] {
+        assert_eq!(row["denoised"], true, "{row}");
+        assert_eq!(row["boundary_loops"], 1, "{row}");
+        assert_eq!(row["euler_characteristic"], 1, "{row}");
+        assert_eq!(row["fold_overs"], 0, "{row}");
+    }
+    let bad = run(&[
+        "bench",
+        "network",
+        sphere.to_str().unwrap(),
+        "--levels",
+        "0",
+    ]);
+    assert!(!bad.status.success());
 }

@@ -2,7 +2,7 @@
 //!
 //! Data flows one way (see `DESIGN.md`):
 //! file ([`io`]) → [`cloud::PointCloud`] → [`normals`] (PCA over [`knn`] neighbourhoods,
-//! consistently oriented) → [`simplify`] (§3, tangent-plane Delaunay [`ring`]s) →
+//! consistently oriented) → [`denoise`] (noisy scans: decide on local fits) → [`simplify`] (§3, tangent-plane Delaunay [`ring`]s) →
 //! [`network`] (§4.1–4.2 springs and masses) → [`solver`] (eq 2–6: forces, integrators,
 //! stability) → [`transfer`] (§5: precomputed least-squares coefficients, normals from
 //! the fitted gradient; [`resample`] fills stretched regions).
@@ -11,6 +11,7 @@
 //! geometry the renderer draws.
 
 pub mod cloud;
+pub mod denoise;
 pub mod io;
 pub mod knn;
 pub mod network;

@@ -37,7 +37,9 @@ use serde::{Deserialize, Serialize};
 
 use crate::core::PointCloud;
 use crate::core::cloud::CloudError;
-use crate::core::network::{NetworkConfig, NetworkError, SpringNetwork, build_network};
+use crate::core::network::{
+    DenseSupport, NetworkConfig, NetworkError, SpringNetwork, build_network_over,
+};
 use crate::core::normals::{DEFAULT_NORMAL_K, NormalSource, NormalsError, ensure_normals};
 use crate::core::resample::{ResampleConfig, ResampleError, ResampleReport, Resampler};
 use crate::core::simplify::{SimplifyConfig, SimplifyError, simplify_with_progress};
@@ -272,13 +274,14 @@ pub fn prepare_surface(
     let (sim_p, sim_n) = kept.gather(positions, normals);
 
     report(Stage::Network, 0.0)?;
-    let network = build_network(
+    let network = build_network_over(
         &sim_p,
         &sim_n,
         &NetworkConfig {
             k: config.simplify.k,
             density: config.material.density,
         },
+        Some(&DenseSupport::new(positions, kept.noise_level)),
     )?;
 
     report(Stage::Transfer, 0.0)?;

@@ -75,6 +75,10 @@ pub struct RingShape {
     pub coincident: bool,
     /// No triangle at the point (its projected neighbourhood is collinear or empty).
     pub degenerate: bool,
+    /// The projected neighbours surround the point: no angular gap between consecutive ones
+    /// reaches [`MAX_FAN_ANGLE`]. A point on a boundary is not surrounded; a point whose ring
+    /// is open only by the circumradius guard (a density jump, not an edge) is.
+    pub surrounded: bool,
 }
 
 /// Reusable scratch space for [`RingBuilder::build`] (one per thread).
@@ -165,6 +169,7 @@ impl RingBuilder {
         if self.kept.len() < 2 {
             return shape;
         }
+        shape.surrounded = self.surrounds();
         self.tri.clear();
         let centre_handle = match self.tri.insert(Projected {
             pos: Point2::new(0.0, 0.0),
@@ -255,6 +260,24 @@ impl RingBuilder {
             );
         }
         shape
+    }
+
+    /// Whether the kept projected neighbours leave no angular gap of [`MAX_FAN_ANGLE`] or more
+    /// around the centre (uses `self.region` as scratch).
+    fn surrounds(&mut self) -> bool {
+        self.region.clear();
+        self.region.extend(
+            self.kept
+                .iter()
+                .map(|&(_, q)| DVec2::new(q.y.atan2(q.x), 0.0)),
+        );
+        self.region.sort_unstable_by(|a, b| a.x.total_cmp(&b.x));
+        let m = self.region.len();
+        (0..m).all(|i| {
+            let gap =
+                (self.region[(i + 1) % m].x - self.region[i].x).rem_euclid(std::f64::consts::TAU);
+            gap < MAX_FAN_ANGLE && (m > 1 || gap > 0.0)
+        })
     }
 
     /// Fills `self.fan` with the centre's neighbours in CCW order, each with whether the face

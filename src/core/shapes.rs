@@ -6,11 +6,15 @@
 //! * [`hat`]: the lower part of a sphere, an open surface (the paper's hat, Fig. 6).
 //! * [`square_sheet`]: a flat square in the XY plane, normals +Z.
 //! * [`letter_b`]: a flat sheet in the shape of the letter "B" (the paper's Fig. 7).
+//! * [`uneven_sphere`]: a sphere whose density falls smoothly by a given ratio from pole to
+//!   pole, and [`with_noise`]: Gaussian noise on any cloud; both make scan-like test data.
 //!
 //! The sheets are sampled on a triangular lattice, which has a unique Delaunay triangulation
 //! (no four co-circular points), unlike a square grid.
 
 use glam::{Vec2, Vec3};
+use rand::{RngExt, SeedableRng};
+use rand_distr::{Distribution, StandardNormal};
 
 use crate::core::cloud::PointCloud;
 
@@ -124,9 +128,84 @@ pub fn letter_b(height: f32, spacing: f32) -> PointCloud {
         .unwrap_or_default()
 }
 
+/// A sphere of `radius` sampled with about `n` points whose density falls smoothly (as an
+/// exponential in height) from the top pole to the bottom one by `ratio` (10 gives 10:1).
+/// Points are kept from a denser Fibonacci sphere, so the result is deterministic for a `seed`.
+pub fn uneven_sphere(n: usize, radius: f32, ratio: f32, seed: u64) -> PointCloud {
+    let ratio = if ratio.is_finite() {
+        ratio.max(1.0)
+    } else {
+        1.0
+    };
+    // Mean keep probability over the sphere (y uniform in [-1, 1] by area):
+    // ∫ ratio^((y − 1) / 2) dy / 2 = (1 − 1/ratio) / ln(ratio).
+    let mean = if ratio > 1.0 {
+        (1.0 - 1.0 / ratio) / ratio.ln()
+    } else {
+        1.0
+    };
+    let dense = fibonacci_sphere((n as f32 / mean).ceil() as usize, radius);
+    let mut rng = rand::rngs::Xoshiro256PlusPlus::seed_from_u64(seed);
+    let (positions, normals) = dense.into_parts();
+    let normals = normals.unwrap_or_default();
+    let (mut p, mut q) = (Vec::new(), Vec::new());
+    for (x, m) in positions.into_iter().zip(normals) {
+        let keep = ratio.powf((m.y - 1.0) * 0.5);
+        if rng.random::<f32>() < keep {
+            p.push(x);
+            q.push(m);
+        }
+    }
+    PointCloud::new(p, Some(q)).unwrap_or_default()
+}
+
+/// `cloud` with isotropic Gaussian noise of standard deviation `sigma` (in the cloud's units)
+/// added to every position; normals are kept (those of the surface before the noise), as a
+/// scanner that also measured normals would give. Deterministic for a `seed`.
+pub fn with_noise(cloud: &PointCloud, sigma: f32, seed: u64) -> PointCloud {
+    let mut rng = rand::rngs::Xoshiro256PlusPlus::seed_from_u64(seed);
+    let mut gauss = || -> f32 { StandardNormal.sample(&mut rng) };
+    let positions = cloud
+        .positions()
+        .iter()
+        .map(|p| *p + sigma * Vec3::new(gauss(), gauss(), gauss()))
+        .collect();
+    PointCloud::new(positions, cloud.normals().map(<[Vec3]>::to_vec)).unwrap_or_default()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn uneven_sphere_has_its_density_ratio() {
+        let s = uneven_sphere(20_000, 1.0, 10.0, 7);
+        assert!((s.len() as f32 - 20_000.0).abs() < 600.0, "{}", s.len());
+        // Points per unit height near the top and near the bottom (equal areas).
+        let top = s.positions().iter().filter(|p| p.y > 0.8).count() as f32;
+        let bottom = s.positions().iter().filter(|p| p.y < -0.8).count() as f32;
+        // Keep probabilities ratio^((y − 1)/2): about ratio^0.9 apart between y = ±0.9.
+        let expected = 10f32.powf(0.9);
+        assert!(
+            (top / bottom / expected - 1.0).abs() < 0.15,
+            "{top} / {bottom}"
+        );
+    }
+
+    #[test]
+    fn noise_has_its_standard_deviation() {
+        let s = fibonacci_sphere(20_000, 1.0);
+        let noisy = with_noise(&s, 0.01, 3);
+        let var = s
+            .positions()
+            .iter()
+            .zip(noisy.positions())
+            .map(|(a, b)| f64::from(a.distance_squared(*b)))
+            .sum::<f64>()
+            / (3.0 * s.len() as f64);
+        assert!((var.sqrt() / 0.01 - 1.0).abs() < 0.02, "{}", var.sqrt());
+        assert_eq!(noisy.normals(), s.normals());
+    }
 
     #[test]
     fn sphere_points_lie_on_the_sphere() {

@@ -42,6 +42,7 @@ use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use rayon::prelude::*;
 
 use crate::core::cloud::PointCloud;
+use crate::core::denoise::{Denoise, decision_surface};
 use crate::core::knn::morton_order;
 use crate::core::ring::{RingBuilder, RingShape};
 
@@ -84,6 +85,9 @@ pub struct SimplifyConfig {
     pub target: Option<usize>,
     /// Stop when every remaining point's d is at least this (the paper's threshold).
     pub max_diameter: Option<f32>,
+    /// Whether to decide on the points projected on local fits (a noisy scan; see
+    /// [`denoise`](crate::core::denoise)). By default, when the cloud measures noisy.
+    pub denoise: Denoise,
 }
 
 impl Default for SimplifyConfig {
@@ -99,6 +103,7 @@ impl SimplifyConfig {
             k: DEFAULT_SIMPLIFY_K,
             target: Some(target),
             max_diameter: None,
+            denoise: Denoise::Auto,
         }
     }
 
@@ -108,6 +113,7 @@ impl SimplifyConfig {
             k: DEFAULT_SIMPLIFY_K,
             target: None,
             max_diameter: Some(diameter),
+            denoise: Denoise::Auto,
         }
     }
 }
@@ -195,6 +201,13 @@ pub struct Simplification {
     pub evaluations: usize,
     /// What stopped the removal.
     pub stop: StopReason,
+    /// The cloud's noise level (see [`denoise::noise_level`](crate::core::denoise::noise_level));
+    /// 0 when not measured ([`Denoise::Off`]).
+    pub noise_level: f32,
+    /// When the decisions were made on the points projected on local fits: the kept points'
+    /// projected positions and normals, in `kept` order (what [`Simplification::gather`]
+    /// returns).
+    pub projected: Option<(Vec<Vec3>, Vec<Vec3>)>,
 }
 
 impl Simplification {
@@ -203,8 +216,12 @@ impl Simplification {
         self.diameters.iter().copied().fold(f32::INFINITY, f32::min)
     }
 
-    /// The kept points' positions and normals gathered from the input.
+    /// The kept points' positions and normals gathered from the input, or their projections
+    /// on local fits when the decisions were made on those.
     pub fn gather(&self, positions: &[Vec3], normals: &[Vec3]) -> (Vec<Vec3>, Vec<Vec3>) {
+        if let Some((p, n)) = &self.projected {
+            return (p.clone(), n.clone());
+        }
         let pick = |v: &[Vec3]| self.kept.iter().map(|&i| v[i as usize]).collect();
         (pick(positions), pick(normals))
     }
@@ -253,6 +270,10 @@ pub fn simplify_with_progress(
     progress: &mut dyn FnMut(SimplifyProgress) -> ControlFlow<()>,
 ) -> Result<Simplification, SimplifyError> {
     validate(positions, normals, config)?;
+    let (positions, normals, noise_level) = decision_surface(positions, normals, config.denoise);
+    let (positions, normals) = (&*positions, &*normals);
+    let projected = !matches!(config.denoise, Denoise::Off)
+        && crate::core::denoise::projects(config.denoise, noise_level);
     // Work in Morton order: neighbours then sit close in memory (positions, neighbour rows,
     // reverse lists), which matters when removals jump around a large cloud.
     let order = morton_order(positions);
@@ -284,6 +305,11 @@ pub fn simplify_with_progress(
     result.kept = back.iter().map(|t| t.0).collect();
     result.diameters = back.iter().map(|t| t.1).collect();
     result.boundary = back.iter().map(|t| t.2).collect();
+    result.noise_level = noise_level;
+    if projected {
+        let pick = |v: &[Vec3]| result.kept.iter().map(|&i| v[i as usize]).collect();
+        result.projected = Some((pick(positions), pick(normals)));
+    }
     Ok(result)
 }
 
@@ -689,6 +715,8 @@ impl<'a> State<'a> {
             duplicates_removed: self.duplicates_removed,
             evaluations: self.evaluations,
             stop,
+            noise_level: 0.0,
+            projected: None,
         }
     }
 }

@@ -86,6 +86,10 @@ pub enum BenchCase {
     /// --dense points, --sim simulation points) in a cup with a sustained poke.
     #[cfg(feature = "plugin")]
     Plugin(crate::bench_plugin::PluginArgs),
+    /// Whether the spring network is watertight: each cloud simplified to several fractions
+    /// of its points, with the network's closedness, Euler characteristic, boundary loops,
+    /// fold-overs, crossings and the time of each stage (a Markdown table, or JSON).
+    Network(crate::bench_network::NetworkArgs),
 }
 
 /// Where the transfer benchmark's simulation points come from.
@@ -398,6 +402,7 @@ pub fn bench(case: BenchCase) -> Result<(), Failure> {
     match case {
         #[cfg(feature = "plugin")]
         BenchCase::Plugin(args) => crate::bench_plugin::bench_plugin(&args),
+        BenchCase::Network(args) => crate::bench_network::bench_network(&args),
         BenchCase::ClothGrid {
             size,
             steps,

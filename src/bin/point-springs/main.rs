@@ -20,6 +20,7 @@
 //! 1 any other failure (e.g. the output cannot be written).
 
 mod bench;
+mod bench_network;
 #[cfg(feature = "plugin")]
 mod bench_plugin;
 mod render;
@@ -29,9 +30,12 @@ use std::process::ExitCode;
 use std::time::Instant;
 
 use bevy_point_springs::core::PointCloud;
+use bevy_point_springs::core::denoise::Denoise;
 use bevy_point_springs::core::io::{CloudFormat, PlyEncoding, read_cloud, write_ply};
 use bevy_point_springs::core::knn::KnnIndex;
-use bevy_point_springs::core::network::{DEFAULT_DENSITY, NetworkConfig, build_network};
+use bevy_point_springs::core::network::{
+    DEFAULT_DENSITY, DenseSupport, NetworkConfig, build_network_over,
+};
 use bevy_point_springs::core::normals::{DEFAULT_NORMAL_K, NormalSource, ensure_normals};
 use bevy_point_springs::core::scene::Scene;
 use bevy_point_springs::core::shapes::{self, HAT_DEFAULT_RIM, PAPER_SPHERE_POINTS};
@@ -112,6 +116,10 @@ enum Command {
         /// Surface density ρ (mass per unit area) for the masses m = ρ·area(R)/3.
         #[arg(long, default_value_t = DEFAULT_DENSITY)]
         density: f32,
+        /// Decide on the points projected on local plane fits: when the cloud measures noisy
+        /// (auto), always (on) or never (off, the paper's method as written).
+        #[arg(long, value_enum, default_value_t = DenoiseArg::Auto)]
+        denoise: DenoiseArg,
         /// Write the simulation points with their normals to this PLY file.
         #[arg(short, long)]
         output: Option<PathBuf>,
@@ -201,10 +209,42 @@ enum Command {
         /// Point spacing (sheet and letter).
         #[arg(long, default_value_t = 0.04)]
         spacing: f32,
+        /// Sphere only: let the density fall smoothly from pole to pole by this ratio (10 for
+        /// 10:1), like a scan seen from one side.
+        #[arg(long)]
+        uneven: Option<f32>,
+        /// Add Gaussian noise with this standard deviation, in mean point spacings (a real
+        /// scan: 0.1 to 1.5); normals stay those of the noiseless surface.
+        #[arg(long)]
+        noise: Option<f32>,
+        /// Seed for --uneven and --noise.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
         /// Write ASCII PLY instead of binary little-endian.
         #[arg(long)]
         ascii: bool,
     },
+}
+
+/// `--denoise` values.
+#[derive(Debug, Clone, Copy, ValueEnum)]
+enum DenoiseArg {
+    /// When the cloud measures noisy.
+    Auto,
+    /// Always.
+    On,
+    /// Never.
+    Off,
+}
+
+impl From<DenoiseArg> for Denoise {
+    fn from(d: DenoiseArg) -> Self {
+        match d {
+            DenoiseArg::Auto => Denoise::Auto,
+            DenoiseArg::On => Denoise::On,
+            DenoiseArg::Off => Denoise::Off,
+        }
+    }
 }
 
 /// Procedural surfaces `generate` writes.
@@ -274,6 +314,8 @@ struct SimplifyReport {
     k: usize,
     density: f32,
     sim_points: usize,
+    noise_level: f32,
+    denoised: bool,
     duplicates_removed: usize,
     stop: &'static str,
     stretch_springs: usize,
@@ -417,9 +459,23 @@ fn run(command: Command) -> Result<(), Failure> {
             rim,
             size,
             spacing,
+            uneven,
+            noise,
+            seed,
             ascii,
         } => {
-            let cloud = generate(shape, points, radius, rim, size, spacing)?;
+            let mut cloud = generate(shape, points, radius, rim, size, spacing, uneven, seed)?;
+            if let Some(sigma) = noise {
+                if !(sigma >= 0.0 && sigma.is_finite()) {
+                    return Err(Failure::bad_input(format!(
+                        "--noise must be a finite number of spacings, 0 or more, got {sigma}"
+                    )));
+                }
+                let spacing = cloud
+                    .spacing(&KnnIndex::build(cloud.positions()))
+                    .map_or(0.0, |s| s.mean);
+                cloud = shapes::with_noise(&cloud, sigma * spacing, seed);
+            }
             write_ply(&output, &cloud, encoding(ascii)).map_err(Failure::other)?;
             println!("{} points → {}", cloud.len(), output.display());
             Ok(())
@@ -535,6 +591,7 @@ fn run(command: Command) -> Result<(), Failure> {
             max_diameter,
             k,
             density,
+            denoise,
             output,
             format,
             ascii,
@@ -548,6 +605,7 @@ fn run(command: Command) -> Result<(), Failure> {
                 k,
                 target,
                 max_diameter,
+                denoise: denoise.into(),
             };
             let network_config = NetworkConfig { k, density };
             // Check the network's settings before the long part.
@@ -567,8 +625,13 @@ fn run(command: Command) -> Result<(), Failure> {
             let simplify_seconds = simplify_start.elapsed().as_secs_f64();
             let network_start = Instant::now();
             let (positions, normals) = kept.gather(cloud.positions(), normals);
-            let network =
-                build_network(&positions, &normals, &network_config).map_err(Failure::bad_input)?;
+            let network = build_network_over(
+                &positions,
+                &normals,
+                &network_config,
+                Some(&DenseSupport::new(cloud.positions(), kept.noise_level)),
+            )
+            .map_err(Failure::bad_input)?;
             let network_seconds = network_start.elapsed().as_secs_f64();
             if let Some(path) = &output {
                 let sim = PointCloud::new(positions, Some(normals)).map_err(Failure::other)?;
@@ -592,6 +655,8 @@ fn run(command: Command) -> Result<(), Failure> {
                 k,
                 density,
                 sim_points: r.points,
+                noise_level: kept.noise_level,
+                denoised: kept.projected.is_some(),
                 duplicates_removed: kept.duplicates_removed,
                 stop: match kept.stop {
                     StopReason::TargetReached => "target",
@@ -632,6 +697,15 @@ fn run(command: Command) -> Result<(), Failure> {
                 println!(
                     "simulation    {} points (stopped by {}; {} duplicates removed)",
                     report.sim_points, report.stop, report.duplicates_removed
+                );
+                println!(
+                    "noise         {:.3} spacings{}",
+                    report.noise_level,
+                    if report.denoised {
+                        "; decided on local plane fits"
+                    } else {
+                        ""
+                    }
                 );
                 println!(
                     "springs       {} stretch, {} bend",
@@ -704,6 +778,7 @@ fn check_view(from: Vec3, up: Vec3, size: (u32, u32)) -> Result<render::View, Fa
     Ok(render::View { from, up, size })
 }
 
+#[allow(clippy::too_many_arguments)]
 fn generate(
     shape: ShapeKind,
     points: usize,
@@ -711,6 +786,8 @@ fn generate(
     rim: f32,
     size: f32,
     spacing: f32,
+    uneven: Option<f32>,
+    seed: u64,
 ) -> Result<PointCloud, Failure> {
     let positive = |name: &str, v: f32| {
         if v > 0.0 && v.is_finite() {
@@ -740,6 +817,17 @@ fn generate(
         return Err(Failure::bad_input(format!(
             "that would be about {count:.0} points; generate writes 4 to {MAX_GENERATED_POINTS}"
         )));
+    }
+    if let Some(ratio) = uneven {
+        if !matches!(shape, ShapeKind::Sphere) {
+            return Err(Failure::bad_input("--uneven is for the sphere"));
+        }
+        if !(ratio >= 1.0 && ratio.is_finite()) {
+            return Err(Failure::bad_input(format!(
+                "--uneven must be a density ratio of 1 or more, got {ratio}"
+            )));
+        }
+        return Ok(shapes::uneven_sphere(points, radius, ratio, seed));
     }
     Ok(match shape {
         ShapeKind::Sphere => shapes::fibonacci_sphere(points, radius),

@@ -8,7 +8,9 @@
 //!
 //! 1. **Candidates.** Every face (i, a, b) of every point's local ring, counter-clockwise
 //!    around i's normal. A triangle proposed by several of its corners gets that many votes.
-//! 2. **Selection.** Candidates are taken by votes (most first), then shortest longest edge,
+//! 2. **Selection.** Candidates are taken by votes (most first), then smallest circumradius
+//!    (where that leaves holes, the selection is also run by shortest longest edge, and the
+//!    mesh with fewer boundary points is kept),
 //!    each accepted when it keeps the mesh a locally embedded, consistently oriented surface.
 //!    At each of its three corners, projected on that corner's tangent plane, it must turn
 //!    counter-clockwise (its normal within 90° of the corner's normal: no fold-over), span
@@ -17,17 +19,20 @@
 //!    directed edges may be in use (orientation stays consistent).
 //! 3. **Stragglers.** A point left without any triangle (inside a region its neighbours'
 //!    triangles already cover) is inserted by splitting the triangle it projects into.
-//! 4. **Closing.** A point whose own ring is closed (the paper's test says the surface goes
-//!    on all around it) but which is left with a gap between two of its triangles gets the
-//!    triangle across the gap (an *ear*), narrowest gap first, under the same tests, until no
-//!    ear fits; a gap too wide for one ear narrows as the ears at its other points are added.
-//!    A loop of boundary edges most of whose points are closable is a hole, and its other
-//!    points are closed too. Points on the surface's true boundary (their rings are open)
-//!    keep their gaps, so the hat keeps its rim and the letter B its counters. What the
-//!    strict tests leave is closed with ears that only keep the mesh a manifold, face within
-//!    90° of their corners' mean normal, and do not overlap at a corner whose tangent plane
-//!    they face within 60° of ([`MAX_CLOSING_ANGLE`]); where the surface curves sharply
-//!    between coarse points no triangle can face within 90° of all three corners' normals.
+//! 4. **Closing.** A *closable* point (its own ring is closed, or open only by the ring's
+//!    circumradius guard while its projected neighbours still surround it: a density slope,
+//!    not an edge) left with a gap between two of its triangles gets the triangle across the
+//!    gap (an *ear*), narrowest gap first, under the same tests, until no ear fits; a gap too
+//!    wide for one ear narrows as the ears at its other points are added. A loop of boundary
+//!    edges most of whose points are closable is a hole, and its other points are closed too.
+//!    Every ear must lie over the dense cloud when it is known ([`DenseSupport`]), so the
+//!    hat keeps its rim and the letter B its counters. What the strict tests leave is closed
+//!    with ears that only keep the mesh a manifold, face within 90° of their corners' mean
+//!    normal, and do not overlap at a corner whose normal they face within 60° of
+//!    ([`MAX_CLOSING_ANGLE`]); where the surface curves sharply between coarse points, no
+//!    triangle faces within 90° of all three corners' normals.
+//! 5. **Points left under the surface.** A point still without a triangle splits the triangle
+//!    of its neighbours whose plane it projects into.
 //!
 //! Every triangle is stored once, counter-clockwise around the (consistently oriented) normals.
 
@@ -37,6 +42,7 @@ use std::f32::consts::TAU;
 
 use glam::Vec3;
 
+use super::DenseSupport;
 use crate::core::knn::KnnGraph;
 
 /// Widest angle a triangle may span at any corner, in that corner's tangent plane (170°):
@@ -187,24 +193,55 @@ pub(crate) fn build_mesh(
     graph: &KnnGraph,
     candidates: Vec<[u32; 3]>,
     closable: &[bool],
+    dense: Option<&DenseSupport>,
 ) -> SurfaceMesh {
-    let mut b = Builder {
-        positions,
-        frames: normals.iter().map(|n| n.any_orthonormal_pair()).collect(),
-        limit: MAX_CORNER_ANGLE,
-        mesh: SurfaceMesh {
-            wedges: vec![Vec::new(); positions.len()],
-            ..SurfaceMesh::default()
-        },
+    let frames: Vec<(Vec3, Vec3)> = normals.iter().map(|n| n.any_orthonormal_pair()).collect();
+    let build = |order: Order| {
+        let mut b = Builder {
+            positions,
+            dense,
+            frames: frames.clone(),
+            limit: MAX_CORNER_ANGLE,
+            mesh: SurfaceMesh {
+                wedges: vec![Vec::new(); positions.len()],
+                ..SurfaceMesh::default()
+            },
+        };
+        b.select(candidates.clone(), order);
+        b.insert_stragglers(graph);
+        b.close(normals, closable, graph);
+        b.split_for_isolated(normals, graph);
+        b.mesh
     };
-    b.select(candidates);
-    b.insert_stragglers(graph);
-    b.close(normals, closable);
-    b.mesh
+    let open = |m: &SurfaceMesh| (0..m.wedges.len()).filter(|&v| m.is_open(v)).count();
+    let first = build(Order::Circumradius);
+    if open(&first) == 0 {
+        return first;
+    }
+    // Where the Delaunay order leaves holes, the other order sometimes does not (and the
+    // other way round): keep the better of the two.
+    let second = build(Order::LongestEdge);
+    if open(&second) < open(&first) {
+        second
+    } else {
+        first
+    }
+}
+
+/// The order in which candidates with as many votes are tried.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Order {
+    /// Smallest circumradius first: the Delaunay choice where rings disagree on a cocircular
+    /// neighbourhood (the spheres' networks are then their convex hulls).
+    Circumradius,
+    /// Shortest longest edge first.
+    LongestEdge,
 }
 
 struct Builder<'a> {
     positions: &'a [Vec3],
+    /// The dense surface closing triangles must lie over, when known.
+    dense: Option<&'a DenseSupport<'a>>,
     /// Tangent basis of each point.
     frames: Vec<(Vec3, Vec3)>,
     /// Widest corner angle accepted now.
@@ -270,8 +307,8 @@ impl Builder<'_> {
         }
     }
 
-    /// Step 2: greedy selection by votes, then size.
-    fn select(&mut self, mut candidates: Vec<[u32; 3]>) {
+    /// Step 2: greedy selection by votes, then `order`.
+    fn select(&mut self, mut candidates: Vec<[u32; 3]>, order: Order) {
         // Same triangle, same orientation: the same rotation with the smallest index first.
         for t in &mut candidates {
             let r = (0..3).min_by_key(|&r| t[r]).unwrap_or(0);
@@ -283,11 +320,20 @@ impl Builder<'_> {
             .map(|group| {
                 let t = group[0];
                 let p = |i: u32| self.positions[i as usize];
-                let longest = [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])]
-                    .iter()
-                    .map(|&(x, y)| p(x).distance_squared(p(y)))
-                    .fold(0.0f32, f32::max);
-                (Reverse(group.len()), longest.to_bits(), t)
+                let (a, b, c) = (p(t[0]), p(t[1]), p(t[2]));
+                let key = match order {
+                    // R = abc / (4·area).
+                    Order::Circumradius => {
+                        let twice_area = (b - a).cross(c - a).length();
+                        a.distance(b) * b.distance(c) * c.distance(a)
+                            / (2.0 * twice_area).max(f32::MIN_POSITIVE)
+                    }
+                    Order::LongestEdge => a
+                        .distance_squared(b)
+                        .max(b.distance_squared(c))
+                        .max(c.distance_squared(a)),
+                };
+                (Reverse(group.len()), key.to_bits(), t)
             })
             .collect();
         voted.sort_unstable();
@@ -302,10 +348,14 @@ impl Builder<'_> {
     /// points are closable is a hole: its other points are closed too. First ears that pass
     /// every test of the selection; then, for what is left, ears that only keep the mesh a
     /// manifold and do not fold over (see [`Builder::add_ear`]).
-    fn close(&mut self, normals: &[Vec3], closable: &[bool]) {
+    fn close(&mut self, normals: &[Vec3], closable: &[bool], graph: &KnnGraph) {
         self.limit = MAX_CLOSING_ANGLE;
         let mut closable = closable.to_vec();
         for strict in [true, false] {
+            if !strict {
+                // Points the strict ears surrounded: split in while sectors are still sorted.
+                self.insert_stragglers(graph);
+            }
             for _ in 0..MAX_CLOSING_ROUNDS {
                 for points in self.mesh.boundary_loops() {
                     let inner = points.iter().filter(|&&v| closable[v as usize]).count();
@@ -321,7 +371,9 @@ impl Builder<'_> {
                 }
                 let before = self.mesh.stats.ears;
                 while let Some(Reverse((_, v, u, x))) = queue.pop() {
-                    let added = if strict {
+                    let added = if !self.over_dense([v, u, x]) {
+                        false
+                    } else if strict {
                         self.try_add([v, u, x])
                     } else {
                         self.add_ear(normals, v, u, x)
@@ -431,6 +483,72 @@ impl Builder<'_> {
         }
     }
 
+    /// Step 5: a point still without a triangle (the closed surface passes just over or under
+    /// it) splits the triangle of its neighbours that it lies over: its projection on that
+    /// triangle's plane inside it, nearer to the plane than the triangle is long, and each new
+    /// triangle facing within 90° of its corners' mean normal. The new sectors go into the
+    /// corners' fans in place of the old one.
+    fn split_for_isolated(&mut self, normals: &[Vec3], graph: &KnnGraph) {
+        for v in 0..self.positions.len() as u32 {
+            if !self.mesh.wedges[v as usize].is_empty() {
+                continue;
+            }
+            let p = self.positions[v as usize];
+            let at = |i: u32| self.positions[i as usize];
+            let inside = graph
+                .neighbours(v as usize)
+                .iter()
+                .flat_map(|&j| {
+                    self.mesh.wedges[j as usize]
+                        .iter()
+                        .map(move |w| [j, w.from, w.to])
+                })
+                .find(|&[a, b, c]| {
+                    let (pa, pb, pc) = (at(a), at(b), at(c));
+                    let n = (pb - pa).cross(pc - pa);
+                    let area2 = n.length_squared();
+                    if area2 == 0.0 {
+                        return false;
+                    }
+                    let height = (p - pa).dot(n) / area2.sqrt();
+                    let longest = pa.distance(pb).max(pb.distance(pc)).max(pc.distance(pa));
+                    let faces_up = |x: u32, y: u32| {
+                        let mean = normals[x as usize] + normals[y as usize] + normals[v as usize];
+                        (at(y) - at(x)).cross(p - at(x)).dot(mean) > 0.0
+                    };
+                    [(pb, pc), (pc, pa), (pa, pb)]
+                        .iter()
+                        .all(|&(x, y)| (y - x).cross(p - x).dot(n) > 0.0)
+                        && height.abs() < longest
+                        && faces_up(a, b)
+                        && faces_up(b, c)
+                        && faces_up(c, a)
+                });
+            let Some([a, b, c]) = inside else { continue };
+            for (corner, from, to) in [(a, b, c), (b, c, a), (c, a, b)] {
+                let first = self.raw_wedge(corner, from, v);
+                let second = self.raw_wedge(corner, v, to);
+                let fan = &mut self.mesh.wedges[corner as usize];
+                if let Some(at) = fan.iter().position(|w| w.from == from && w.to == to) {
+                    fan[at] = first;
+                    fan.insert(at + 1, second);
+                }
+            }
+            self.mesh.wedges[v as usize] = vec![
+                self.raw_wedge(v, a, b),
+                self.raw_wedge(v, b, c),
+                self.raw_wedge(v, c, a),
+            ];
+            self.mesh.stats.inserted += 1;
+        }
+    }
+
+    /// Whether triangle `t` lies over the dense surface (always, when it is not known).
+    fn over_dense(&self, [a, b, c]: [u32; 3]) -> bool {
+        let p = |i: u32| self.positions[i as usize];
+        self.dense.is_none_or(|d| d.covers([p(a), p(b), p(c)]))
+    }
+
     /// Queues the ears across `v`'s gaps that are narrow enough, keyed by their angle.
     fn queue_gaps(&self, v: u32, queue: &mut BinaryHeap<Reverse<(u32, u32, u32, u32)>>) {
         let gaps: Vec<(u32, u32)> = self.mesh.gaps(v as usize).collect();
@@ -441,8 +559,9 @@ impl Builder<'_> {
         }
     }
 
-    /// Step 4 (run before closing, while every sector is still sorted by angle): a point with
-    /// no triangle splits a triangle at one of its nearest neighbours that it projects into.
+    /// Step 3 (run before closing and between its strict and relaxed ears, while every sector
+    /// is still sorted by angle): a point with no triangle splits a triangle at one of its
+    /// nearest neighbours that it projects into.
     fn insert_stragglers(&mut self, graph: &KnnGraph) {
         for v in 0..self.positions.len() as u32 {
             if !self.mesh.wedges[v as usize].is_empty() {
@@ -456,7 +575,6 @@ impl Builder<'_> {
                         .iter()
                         .map(move |w| [j, w.from, w.to])
                 })
-                .take(STRAGGLER_TRIANGLES)
                 .collect();
             for t @ [a, b, c] in near {
                 if !self.mesh.has_wedge(a as usize, b, c) {
@@ -484,9 +602,6 @@ impl Builder<'_> {
         }
     }
 }
-
-/// Triangles near a straggler tried for its insertion.
-const STRAGGLER_TRIANGLES: usize = 8;
 
 /// Whether two sectors around the same point overlap (sharing an end is not overlapping).
 fn overlaps(a: &Wedge, b: &Wedge) -> bool {

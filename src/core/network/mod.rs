@@ -208,13 +208,77 @@ impl SpringNetwork {
     }
 }
 
+/// The dense cloud the simulation points were chosen from, which tells a hole in the surface
+/// from a gap the coarse rings left: a triangle closing a gap must lie over dense points. A
+/// dense point must lie within [`SUPPORT_SPACINGS`] local dense spacings of its centroid along
+/// the triangle's plane (plus three noise deviations on a noisy cloud), and within half the
+/// triangle's longest edge across it (a coarse triangle's centroid sits below a curved
+/// surface by its sagitta; a hole, like the letter B's counters, is empty along the plane).
+#[derive(Debug)]
+pub struct DenseSupport<'a> {
+    positions: &'a [Vec3],
+    index: KnnIndex,
+    reach: f32,
+}
+
+/// How far along a closing triangle's plane (in local dense spacings: the mean distance to
+/// the nearest [`SUPPORT_NEIGHBOURS`]) its centroid may be from a dense point.
+pub const SUPPORT_SPACINGS: f32 = 2.0;
+
+/// Neighbours averaged for the local dense spacing, and dense points looked at around a
+/// centroid.
+pub const SUPPORT_NEIGHBOURS: usize = 8;
+
+impl<'a> DenseSupport<'a> {
+    /// Indexes the dense `positions`, whose noise level (in spacings, from
+    /// [`noise_level`](crate::core::denoise::noise_level)) is `noise`.
+    pub fn new(positions: &'a [Vec3], noise: f32) -> Self {
+        Self {
+            positions,
+            index: KnnIndex::build(positions),
+            reach: SUPPORT_SPACINGS + 3.0 * noise.max(0.0),
+        }
+    }
+
+    /// Whether the dense surface lies under the triangle (a, b, c).
+    pub fn covers(&self, [a, b, c]: [Vec3; 3]) -> bool {
+        let centre = (a + b + c) / 3.0;
+        let normal = (b - a).cross(c - a).normalize_or_zero();
+        let longest = a.distance(b).max(b.distance(c)).max(c.distance(a));
+        let near = self.index.nearest(centre, SUPPORT_NEIGHBOURS);
+        let Some(first) = near.first() else {
+            return true;
+        };
+        let anchor = self.positions[first.index as usize];
+        let around = self.index.nearest(anchor, SUPPORT_NEIGHBOURS + 1);
+        let spacing = around.iter().skip(1).map(|nb| nb.dist2.sqrt()).sum::<f32>()
+            / around.len().saturating_sub(1).max(1) as f32;
+        near.iter().any(|nb| {
+            let d = self.positions[nb.index as usize] - centre;
+            let across = d.dot(normal);
+            (d - across * normal).length() <= self.reach * spacing && across.abs() <= 0.5 * longest
+        })
+    }
+}
+
 /// Builds the spring network on simulation points with consistently oriented unit normals
 /// (as [`ensure_normals`](crate::core::normals::ensure_normals) gives; normals whose signs
-/// disagree between neighbours are oriented first).
+/// disagree between neighbours are oriented first). See [`build_network_over`] to let the
+/// dense cloud tell holes from gaps.
 pub fn build_network(
     positions: &[Vec3],
     normals: &[Vec3],
     config: &NetworkConfig,
+) -> Result<SpringNetwork, NetworkError> {
+    build_network_over(positions, normals, config, None)
+}
+
+/// [`build_network`], closing gaps only where the `dense` surface the points came from lies.
+pub fn build_network_over(
+    positions: &[Vec3],
+    normals: &[Vec3],
+    config: &NetworkConfig,
+    dense: Option<&DenseSupport>,
 ) -> Result<SpringNetwork, NetworkError> {
     validate(positions, normals, config)?;
     let n = positions.len();
@@ -270,11 +334,11 @@ pub fn build_network(
     }
     let closable: Vec<bool> = local
         .iter()
-        .map(|(s, _)| !s.open && !s.degenerate)
+        .map(|(s, _)| !s.degenerate && (!s.open || s.surrounded))
         .collect();
 
     // 2–3. One oriented mesh from the rings, holes closed.
-    let mesh = mesh::build_mesh(positions, &oriented, &graph, candidates, &closable);
+    let mesh = mesh::build_mesh(positions, &oriented, &graph, candidates, &closable, dense);
     let triangles = mesh.triangles();
     let mut edges: Vec<(u32, u32)> = triangles
         .iter()
