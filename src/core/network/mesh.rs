@@ -495,35 +495,27 @@ impl Builder<'_> {
             }
             let p = self.positions[v as usize];
             let at = |i: u32| self.positions[i as usize];
-            let inside = graph
-                .neighbours(v as usize)
-                .iter()
-                .flat_map(|&j| {
-                    self.mesh.wedges[j as usize]
-                        .iter()
-                        .map(move |w| [j, w.from, w.to])
-                })
-                .find(|&[a, b, c]| {
-                    let (pa, pb, pc) = (at(a), at(b), at(c));
-                    let n = (pb - pa).cross(pc - pa);
-                    let area2 = n.length_squared();
-                    if area2 == 0.0 {
-                        return false;
-                    }
-                    let height = (p - pa).dot(n) / area2.sqrt();
-                    let longest = pa.distance(pb).max(pb.distance(pc)).max(pc.distance(pa));
-                    let faces_up = |x: u32, y: u32| {
-                        let mean = normals[x as usize] + normals[y as usize] + normals[v as usize];
-                        (at(y) - at(x)).cross(p - at(x)).dot(mean) > 0.0
-                    };
-                    [(pb, pc), (pc, pa), (pa, pb)]
-                        .iter()
-                        .all(|&(x, y)| (y - x).cross(p - x).dot(n) > 0.0)
-                        && height.abs() < longest
-                        && faces_up(a, b)
-                        && faces_up(b, c)
-                        && faces_up(c, a)
-                });
+            let inside = self.triangles_near(v, graph).find(|&[a, b, c]| {
+                let (pa, pb, pc) = (at(a), at(b), at(c));
+                let n = (pb - pa).cross(pc - pa);
+                let area2 = n.length_squared();
+                if area2 == 0.0 {
+                    return false;
+                }
+                let height = (p - pa).dot(n) / area2.sqrt();
+                let longest = pa.distance(pb).max(pb.distance(pc)).max(pc.distance(pa));
+                let faces_up = |x: u32, y: u32| {
+                    let mean = normals[x as usize] + normals[y as usize] + normals[v as usize];
+                    (at(y) - at(x)).cross(p - at(x)).dot(mean) > 0.0
+                };
+                [(pb, pc), (pc, pa), (pa, pb)]
+                    .iter()
+                    .all(|&(x, y)| (y - x).cross(p - x).dot(n) > 0.0)
+                    && height.abs() < longest
+                    && faces_up(a, b)
+                    && faces_up(b, c)
+                    && faces_up(c, a)
+            });
             let Some([a, b, c]) = inside else { continue };
             for (corner, from, to) in [(a, b, c), (b, c, a), (c, a, b)] {
                 let first = self.raw_wedge(corner, from, v);
@@ -541,6 +533,19 @@ impl Builder<'_> {
             ];
             self.mesh.stats.inserted += 1;
         }
+    }
+
+    /// The triangles at `v`'s nearest neighbours (each as often as it has corners there).
+    fn triangles_near<'g>(
+        &'g self,
+        v: u32,
+        graph: &'g KnnGraph,
+    ) -> impl Iterator<Item = [u32; 3]> + 'g {
+        graph.neighbours(v as usize).iter().flat_map(move |&j| {
+            self.mesh.wedges[j as usize]
+                .iter()
+                .map(move |w| [j, w.from, w.to])
+        })
     }
 
     /// Whether triangle `t` lies over the dense surface (always, when it is not known).
@@ -567,15 +572,7 @@ impl Builder<'_> {
             if !self.mesh.wedges[v as usize].is_empty() {
                 continue;
             }
-            let near: Vec<[u32; 3]> = graph
-                .neighbours(v as usize)
-                .iter()
-                .flat_map(|&j| {
-                    self.mesh.wedges[j as usize]
-                        .iter()
-                        .map(move |w| [j, w.from, w.to])
-                })
-                .collect();
+            let near: Vec<[u32; 3]> = self.triangles_near(v, graph).collect();
             for t @ [a, b, c] in near {
                 if !self.mesh.has_wedge(a as usize, b, c) {
                     continue; // split already
