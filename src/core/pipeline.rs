@@ -72,7 +72,7 @@ impl Default for NormalsSpec {
 pub struct SurfaceConfig {
     /// Where the dense normals come from.
     pub normals: NormalsSpec,
-    /// §3: how many simulation points.
+    /// §3: how many simulation points, and whether a noisy cloud is decided on local fits.
     pub simplify: SimplifyConfig,
     /// Density, spring stiffness and damping.
     pub material: SpringMaterial,

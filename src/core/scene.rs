@@ -150,7 +150,8 @@ pub struct Scene {
     /// Where its normals come from.
     #[serde(default)]
     pub normals: NormalsSpec,
-    /// §3 settings.
+    /// §3 settings: `(target: Some(338))`, `(max_diameter: Some(0.1))`, `k`, and `denoise:
+    /// Auto / On / Off` for noisy scans.
     #[serde(default)]
     pub simplify: SimplifyConfig,
     /// Density, spring stiffness and damping.
@@ -635,6 +636,13 @@ mod tests {
         // Round trip.
         let text = ron::to_string(&s).unwrap();
         assert_eq!(Scene::from_ron(&text).unwrap(), s);
+        // Noisy scans are decided on local fits unless a scene says otherwise.
+        assert_eq!(s.simplify.denoise, crate::core::denoise::Denoise::Auto);
+        let off = Scene::from_ron(
+            r#"(cloud: "a.ply", simplify: (target: Some(50), denoise: Off), dt: 0.01, steps: 10)"#,
+        )
+        .unwrap();
+        assert_eq!(off.simplify.denoise, crate::core::denoise::Denoise::Off);
     }
 
     #[test]
