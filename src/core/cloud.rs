@@ -208,6 +208,15 @@ pub fn spacing_stats(positions: &[Vec3], index: &KnnIndex) -> Option<SpacingStat
     })
 }
 
+/// The first point whose position or normal is not finite, or whose normal is zero: what
+/// simplification, the network and the transfer refuse.
+pub fn first_invalid_point(positions: &[Vec3], normals: &[Vec3]) -> Option<usize> {
+    positions
+        .iter()
+        .zip(normals)
+        .position(|(p, n)| !p.is_finite() || !n.is_finite() || n.length_squared() == 0.0)
+}
+
 /// Checks one position against the cloud invariants.
 pub(crate) fn check_position(index: usize, p: Vec3) -> Result<(), CloudError> {
     if !p.is_finite() {

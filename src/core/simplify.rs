@@ -32,6 +32,7 @@
 //!
 //! [kiddo]: https://crates.io/crates/kiddo
 
+use std::borrow::Cow;
 use std::cmp::Reverse;
 use std::collections::BinaryHeap;
 use std::num::NonZeroUsize;
@@ -41,7 +42,7 @@ use glam::Vec3;
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use rayon::prelude::*;
 
-use crate::core::cloud::PointCloud;
+use crate::core::cloud::{PointCloud, first_invalid_point};
 use crate::core::denoise::{Denoise, decision_surface};
 use crate::core::knn::morton_order;
 use crate::core::ring::{RingBuilder, RingShape};
@@ -271,9 +272,8 @@ pub fn simplify_with_progress(
 ) -> Result<Simplification, SimplifyError> {
     validate(positions, normals, config)?;
     let (positions, normals, noise_level) = decision_surface(positions, normals, config.denoise);
+    let projected = matches!(positions, Cow::Owned(_));
     let (positions, normals) = (&*positions, &*normals);
-    let projected = !matches!(config.denoise, Denoise::Off)
-        && crate::core::denoise::projects(config.denoise, noise_level);
     // Work in Morton order: neighbours then sit close in memory (positions, neighbour rows,
     // reverse lists), which matters when removals jump around a large cloud.
     let order = morton_order(positions);
@@ -350,11 +350,7 @@ fn validate(
             found: positions.len(),
         });
     }
-    if let Some(i) = positions
-        .iter()
-        .zip(normals)
-        .position(|(p, n)| !p.is_finite() || !n.is_finite() || n.length_squared() == 0.0)
-    {
+    if let Some(i) = first_invalid_point(positions, normals) {
         return Err(SimplifyError::InvalidPoint(i));
     }
     Ok(())

@@ -67,6 +67,7 @@
 use glam::{DVec3, Vec3, Vec3A};
 use rayon::prelude::*;
 
+use crate::core::cloud::first_invalid_point;
 use crate::core::knn::KnnIndex;
 use crate::core::normals::pca_normals;
 
@@ -454,11 +455,7 @@ impl Transfer {
                 index,
             });
         }
-        if let Some(index) = rest
-            .iter()
-            .zip(normals)
-            .position(|(p, n)| !p.is_finite() || !n.is_finite() || n.length_squared() == 0.0)
-        {
+        if let Some(index) = first_invalid_point(rest, normals) {
             return Err(TransferError::InvalidPoint {
                 which: "dense",
                 index,

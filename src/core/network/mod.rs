@@ -25,6 +25,7 @@
 use glam::Vec3;
 use rayon::prelude::*;
 
+use crate::core::cloud::first_invalid_point;
 use crate::core::knn::KnnIndex;
 use crate::core::normals::orient_normals;
 use crate::core::ring::{RingBuilder, RingShape};
@@ -531,11 +532,7 @@ fn validate(
             found: positions.len(),
         });
     }
-    if let Some(i) = positions
-        .iter()
-        .zip(normals)
-        .position(|(p, n)| !p.is_finite() || !n.is_finite() || n.length_squared() == 0.0)
-    {
+    if let Some(i) = first_invalid_point(positions, normals) {
         return Err(NetworkError::InvalidPoint(i));
     }
     Ok(())
