@@ -155,6 +155,8 @@ fn simplify_writes_simulation_points_and_reports_the_network() {
         (Some(0), Some(0))
     );
     assert_eq!(v["denoised"], false);
+    // The sphere's rings leave no hole for a dense point to fill.
+    assert_eq!(v["filling_points"], 0);
     // A closed triangulated surface: E = 3V − 6.
     assert_eq!(v["stretch_springs"], 3 * 120 - 6);
     let written = read_cloud(&output, None).unwrap();

@@ -31,7 +31,12 @@ fn network_of(cloud: &PointCloud, target: usize, rho: f32) -> (Simplification, S
         density: rho,
         ..NetworkConfig::default()
     };
-    let dense = DenseSupport::new(cloud.positions(), kept.noise_level);
+    let dense = DenseSupport::new(
+        cloud.positions(),
+        cloud.normals().unwrap(),
+        kept.noise_level,
+        kept.projected.is_some(),
+    );
     let net = build_network_over(&p, &n, &config, Some(&dense)).unwrap();
     (kept, net)
 }

@@ -121,24 +121,37 @@ pub fn project_on_fits(
             let mut points = Vec::with_capacity(k + 1);
             for (row, slot) in rows.iter_mut().enumerate() {
                 let i = chunk * FIT_CHUNK + row;
-                let (p, n) = (positions[i], normals[i]);
-                points.clear();
-                points.extend(
-                    index
-                        .nearest(p, k + 1)
-                        .iter()
-                        .map(|nb| positions[nb.index as usize]),
-                );
-                *slot = match plane_fit(p, &points) {
-                    Some((centre, normal)) => {
-                        let normal = if normal.dot(n) < 0.0 { -normal } else { normal };
-                        (p - (p - centre).dot(normal) * normal, normal)
-                    }
-                    None => (p, n),
-                };
+                *slot = project_on_fit(positions[i], normals[i], positions, index, k, &mut points);
             }
         });
     out.into_iter().unzip()
+}
+
+/// Point `p` (normal `n`) moved onto the least-squares plane through its `k` nearest
+/// neighbours among the indexed `positions`, with that plane's normal turned to agree with `n`;
+/// `(p, n)` where the neighbourhood has no plane. `scratch` is reused between calls.
+pub fn project_on_fit(
+    p: Vec3,
+    n: Vec3,
+    positions: &[Vec3],
+    index: &KnnIndex,
+    k: usize,
+    scratch: &mut Vec<Vec3>,
+) -> (Vec3, Vec3) {
+    scratch.clear();
+    scratch.extend(
+        index
+            .nearest(p, k + 1)
+            .iter()
+            .map(|nb| positions[nb.index as usize]),
+    );
+    match plane_fit(p, scratch) {
+        Some((centre, normal)) => {
+            let normal = if normal.dot(n) < 0.0 { -normal } else { normal };
+            (p - (p - centre).dot(normal) * normal, normal)
+        }
+        None => (p, n),
+    }
 }
 
 /// The positions and normals decisions are made on: `positions` and `normals` themselves, or

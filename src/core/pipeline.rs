@@ -281,7 +281,12 @@ pub fn prepare_surface(
             k: config.simplify.k,
             density: config.material.density,
         },
-        Some(&DenseSupport::new(positions, kept.noise_level)),
+        Some(&DenseSupport::new(
+            positions,
+            normals,
+            kept.noise_level,
+            kept.projected.is_some(),
+        )),
     )?;
 
     report(Stage::Transfer, 0.0)?;

@@ -111,7 +111,12 @@ pub fn bench_network(args: &NetworkArgs) -> Result<(), Failure> {
             let simplify_seconds = start.elapsed().as_secs_f64();
             let start = Instant::now();
             let (p, n) = kept.gather(positions, normals);
-            let dense = DenseSupport::new(positions, kept.noise_level);
+            let dense = DenseSupport::new(
+                positions,
+                normals,
+                kept.noise_level,
+                kept.projected.is_some(),
+            );
             let net = build_network_over(
                 &p,
                 &n,

@@ -331,6 +331,7 @@ struct SimplifyReport {
     fold_overs: usize,
     crossings: usize,
     closing_triangles: usize,
+    filling_points: usize,
     isolated_points: usize,
     total_mass: f32,
     area: f32,
@@ -615,26 +616,33 @@ fn run(command: Command) -> Result<(), Failure> {
                 )));
             }
             let simplify_start = Instant::now();
-            let normals = cloud.normals().unwrap_or_default();
-            let kept =
-                simplify_with_progress(cloud.positions(), normals, &config, &mut show_progress)
-                    .map_err(Failure::bad_input)?;
+            let dense_normals = cloud.normals().unwrap_or_default();
+            let kept = simplify_with_progress(
+                cloud.positions(),
+                dense_normals,
+                &config,
+                &mut show_progress,
+            )
+            .map_err(Failure::bad_input)?;
             if std::io::IsTerminal::is_terminal(&std::io::stderr()) {
                 eprintln!();
             }
             let simplify_seconds = simplify_start.elapsed().as_secs_f64();
             let network_start = Instant::now();
-            let (positions, normals) = kept.gather(cloud.positions(), normals);
-            let network = build_network_over(
-                &positions,
-                &normals,
-                &network_config,
-                Some(&DenseSupport::new(cloud.positions(), kept.noise_level)),
-            )
-            .map_err(Failure::bad_input)?;
+            let (positions, normals) = kept.gather(cloud.positions(), dense_normals);
+            let dense = DenseSupport::new(
+                cloud.positions(),
+                dense_normals,
+                kept.noise_level,
+                kept.projected.is_some(),
+            );
+            let network = build_network_over(&positions, &normals, &network_config, Some(&dense))
+                .map_err(Failure::bad_input)?;
             let network_seconds = network_start.elapsed().as_secs_f64();
             if let Some(path) = &output {
-                let sim = PointCloud::new(positions, Some(normals)).map_err(Failure::other)?;
+                // The network's points: the kept ones and any that fill holes.
+                let sim = PointCloud::new(network.positions.clone(), Some(network.normals.clone()))
+                    .map_err(Failure::other)?;
                 let encoding = if ascii {
                     PlyEncoding::Ascii
                 } else {
@@ -677,6 +685,7 @@ fn run(command: Command) -> Result<(), Failure> {
                 fold_overs: r.fold_overs,
                 crossings: r.crossings,
                 closing_triangles: r.closing_triangles,
+                filling_points: r.filling_points,
                 isolated_points: r.isolated_points,
                 total_mass: r.total_mass,
                 area: r.area,
@@ -712,11 +721,12 @@ fn run(command: Command) -> Result<(), Failure> {
                     report.stretch_springs, report.bend_springs
                 );
                 println!(
-                    "surface       {}, Euler characteristic {}, {} triangles ({} closing holes), {} component(s)",
+                    "surface       {}, Euler characteristic {}, {} triangles ({} closing holes, around {} points added from the dense cloud), {} component(s)",
                     if report.closed { "closed" } else { "open" },
                     report.euler_characteristic,
                     report.triangles,
                     report.closing_triangles,
+                    report.filling_points,
                     report.components
                 );
                 println!(

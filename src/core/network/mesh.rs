@@ -33,6 +33,8 @@
 //!    triangle faces within 90° of all three corners' normals.
 //! 5. **Points left under the surface.** A point still without a triangle splits the triangle
 //!    of its neighbours whose plane it projects into.
+//! 6. **Fans.** A hole no ear closes gets a fan from the dense point that sees its whole loop
+//!    (see [`fill`]); that point joins the simulation points.
 //!
 //! Every triangle is stored once, counter-clockwise around the (consistently oriented) normals.
 
@@ -44,6 +46,8 @@ use glam::Vec3;
 
 use super::DenseSupport;
 use crate::core::knn::KnnGraph;
+
+mod fill;
 
 /// Widest angle a triangle may span at any corner, in that corner's tangent plane (170°):
 /// wider ones are slivers whose orientation a small error can flip.
@@ -85,6 +89,8 @@ pub(crate) struct MeshStats {
     pub ears: usize,
     /// Points without triangles inserted by splitting a triangle.
     pub inserted: usize,
+    /// Holes filled by a fan from an added point.
+    pub fans: usize,
 }
 
 /// An oriented triangle mesh over the simulation points, stored as each point's sectors (a
@@ -95,6 +101,9 @@ pub(crate) struct SurfaceMesh {
     pub wedges: Vec<Vec<Wedge>>,
     /// How the mesh came about.
     pub stats: MeshStats,
+    /// Points added to fill holes (position, unit normal), numbered after the simulation
+    /// points in order.
+    pub added: Vec<(Vec3, Vec3)>,
 }
 
 impl SurfaceMesh {
@@ -198,7 +207,8 @@ pub(crate) fn build_mesh(
     let frames: Vec<(Vec3, Vec3)> = normals.iter().map(|n| n.any_orthonormal_pair()).collect();
     let build = |order: Order| {
         let mut b = Builder {
-            positions,
+            positions: positions.to_vec(),
+            normals: normals.to_vec(),
             dense,
             frames: frames.clone(),
             limit: MAX_CORNER_ANGLE,
@@ -209,8 +219,14 @@ pub(crate) fn build_mesh(
         };
         b.select(candidates.clone(), order);
         b.insert_stragglers(graph);
-        b.close(normals, closable, graph);
-        b.split_for_isolated(normals, graph);
+        let closable = b.close(closable, graph);
+        b.split_for_isolated(graph);
+        b.fill_with_centres(&closable);
+        b.mesh.added = b.positions[positions.len()..]
+            .iter()
+            .copied()
+            .zip(b.normals[positions.len()..].iter().copied())
+            .collect();
         b.mesh
     };
     let open = |m: &SurfaceMesh| (0..m.wedges.len()).filter(|&v| m.is_open(v)).count();
@@ -239,7 +255,10 @@ enum Order {
 }
 
 struct Builder<'a> {
-    positions: &'a [Vec3],
+    /// Positions of the points: the simulation points, then those added to fill holes.
+    positions: Vec<Vec3>,
+    /// Their unit normals, consistently oriented.
+    normals: Vec<Vec3>,
     /// The dense surface closing triangles must lie over, when known.
     dense: Option<&'a DenseSupport<'a>>,
     /// Tangent basis of each point.
@@ -348,48 +367,54 @@ impl Builder<'_> {
     /// points are closable is a hole: its other points are closed too. First ears that pass
     /// every test of the selection; then, for what is left, ears that only keep the mesh a
     /// manifold and do not fold over (see [`Builder::add_ear`]).
-    fn close(&mut self, normals: &[Vec3], closable: &[bool], graph: &KnnGraph) {
+    /// Returns which points are closable in the end.
+    fn close(&mut self, closable: &[bool], graph: &KnnGraph) -> Vec<bool> {
         self.limit = MAX_CLOSING_ANGLE;
         let mut closable = closable.to_vec();
-        for strict in [true, false] {
-            if !strict {
-                // Points the strict ears surrounded: split in while sectors are still sorted.
-                self.insert_stragglers(graph);
+        self.ear_rounds(&mut closable, true);
+        // Points the strict ears surrounded: split in while sectors are still sorted.
+        self.insert_stragglers(graph);
+        self.ear_rounds(&mut closable, false);
+        closable
+    }
+
+    /// Rounds of ears across the gaps of `closable` points, narrowest first, `strict`ly
+    /// tested ([`Builder::try_add`]) or not ([`Builder::add_ear`]); a loop most of whose points
+    /// are closable makes all of them closable.
+    fn ear_rounds(&mut self, closable: &mut [bool], strict: bool) {
+        for _ in 0..MAX_CLOSING_ROUNDS {
+            for points in self.mesh.boundary_loops() {
+                let inner = points.iter().filter(|&&v| closable[v as usize]).count();
+                if 2 * inner >= points.len() {
+                    for v in points {
+                        closable[v as usize] = true;
+                    }
+                }
             }
-            for _ in 0..MAX_CLOSING_ROUNDS {
-                for points in self.mesh.boundary_loops() {
-                    let inner = points.iter().filter(|&&v| closable[v as usize]).count();
-                    if 2 * inner >= points.len() {
-                        for v in points {
-                            closable[v as usize] = true;
+            let mut queue: BinaryHeap<Reverse<(u32, u32, u32, u32)>> = BinaryHeap::new();
+            for v in (0..closable.len()).filter(|&v| closable[v]) {
+                self.queue_gaps(v as u32, &mut queue);
+            }
+            let before = self.mesh.stats.ears;
+            while let Some(Reverse((_, v, u, x))) = queue.pop() {
+                let added = if !self.over_dense([v, u, x]) {
+                    false
+                } else if strict {
+                    self.try_add([v, u, x])
+                } else {
+                    self.add_ear(v, u, x)
+                };
+                if added {
+                    self.mesh.stats.ears += 1;
+                    for w in [v, u, x] {
+                        if closable[w as usize] {
+                            self.queue_gaps(w, &mut queue);
                         }
                     }
                 }
-                let mut queue: BinaryHeap<Reverse<(u32, u32, u32, u32)>> = BinaryHeap::new();
-                for v in (0..closable.len()).filter(|&v| closable[v]) {
-                    self.queue_gaps(v as u32, &mut queue);
-                }
-                let before = self.mesh.stats.ears;
-                while let Some(Reverse((_, v, u, x))) = queue.pop() {
-                    let added = if !self.over_dense([v, u, x]) {
-                        false
-                    } else if strict {
-                        self.try_add([v, u, x])
-                    } else {
-                        self.add_ear(normals, v, u, x)
-                    };
-                    if added {
-                        self.mesh.stats.ears += 1;
-                        for w in [v, u, x] {
-                            if closable[w as usize] {
-                                self.queue_gaps(w, &mut queue);
-                            }
-                        }
-                    }
-                }
-                if self.mesh.stats.ears == before {
-                    break;
-                }
+            }
+            if self.mesh.stats.ears == before {
+                break;
             }
         }
     }
@@ -402,7 +427,8 @@ impl Builder<'_> {
     /// can face within 90° of all three corners' normals; tangent planes then say nothing about
     /// overlaps at `u` and `x`, so the new sectors go into their fans by the loop's order, not
     /// by angle.
-    fn add_ear(&mut self, normals: &[Vec3], v: u32, u: u32, x: u32) -> bool {
+    fn add_ear(&mut self, v: u32, u: u32, x: u32) -> bool {
+        let normals = &self.normals;
         if self.wedge(v, u, x).is_none() || !self.ear_is_manifold(v, u, x) {
             return false;
         }
@@ -488,8 +514,10 @@ impl Builder<'_> {
     /// triangle's plane inside it, nearer to the plane than the triangle is long, and each new
     /// triangle facing within 90° of its corners' mean normal. The new sectors go into the
     /// corners' fans in place of the old one.
-    fn split_for_isolated(&mut self, normals: &[Vec3], graph: &KnnGraph) {
-        for v in 0..self.positions.len() as u32 {
+    fn split_for_isolated(&mut self, graph: &KnnGraph) {
+        let normals = &self.normals;
+        // Points added to fill holes always have their fans.
+        for v in 0..graph.len() as u32 {
             if !self.mesh.wedges[v as usize].is_empty() {
                 continue;
             }
@@ -568,7 +596,7 @@ impl Builder<'_> {
     /// is still sorted by angle): a point with no triangle splits a triangle at one of its
     /// nearest neighbours that it projects into.
     fn insert_stragglers(&mut self, graph: &KnnGraph) {
-        for v in 0..self.positions.len() as u32 {
+        for v in 0..graph.len() as u32 {
             if !self.mesh.wedges[v as usize].is_empty() {
                 continue;
             }

@@ -22,6 +22,8 @@
 //! closed, its Euler characteristic, and (checked independently of the construction) its
 //! fold-overs, crossing springs and non-manifold edges.
 
+use std::borrow::Cow;
+
 use glam::Vec3;
 use rayon::prelude::*;
 
@@ -157,6 +159,9 @@ pub struct NetworkReport {
     pub closing_triangles: usize,
     /// Points without a triangle inserted by splitting a triangle.
     pub inserted_points: usize,
+    /// Dense points added as simulation points, each the centre of a fan filling a hole no
+    /// ear closed (numbered after the simulation points given).
+    pub filling_points: usize,
     /// Points left without any triangle.
     pub isolated_points: usize,
     /// Springs added to give stragglers [`MIN_STRETCH_SPRINGS`].
@@ -168,7 +173,8 @@ pub struct NetworkReport {
 /// Simulation points with their springs and masses: the rest state of a deformable surface.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct SpringNetwork {
-    /// Rest positions.
+    /// Rest positions: the points the network was built on, then any dense points added to
+    /// fill holes ([`NetworkReport::filling_points`]).
     pub positions: Vec<Vec3>,
     /// Rest normals (unit).
     pub normals: Vec<Vec3>,
@@ -210,16 +216,22 @@ impl SpringNetwork {
 }
 
 /// The dense cloud the simulation points were chosen from, which tells a hole in the surface
-/// from a gap the coarse rings left: a triangle closing a gap must lie over dense points. A
-/// dense point must lie within [`SUPPORT_SPACINGS`] local dense spacings of its centroid along
-/// the triangle's plane (plus three noise deviations on a noisy cloud), and within half the
-/// triangle's longest edge across it (a coarse triangle's centroid sits below a curved
-/// surface by its sagitta; a hole, like the letter B's counters, is empty along the plane).
+/// from a gap the coarse rings left, and gives the points that fill the gaps ears cannot.
+///
+/// A triangle closing a gap must lie over dense points: a dense point must lie within
+/// [`SUPPORT_SPACINGS`] local dense spacings of its centroid along the triangle's plane (plus
+/// three noise deviations on a noisy cloud), and within half the triangle's longest edge across
+/// it (a coarse triangle's centroid sits below a curved surface by its sagitta; a hole, like the
+/// letter B's counters, is empty along the plane).
 #[derive(Debug)]
 pub struct DenseSupport<'a> {
     positions: &'a [Vec3],
+    normals: &'a [Vec3],
     index: KnnIndex,
     reach: f32,
+    /// Neighbours of the local plane a dense point is projected on before it becomes a
+    /// simulation point, when the simulation points were (see [`Denoise`](crate::core::denoise::Denoise)).
+    fit_k: Option<usize>,
 }
 
 /// How far along a closing triangle's plane (in local dense spacings: the mean distance to
@@ -231,13 +243,18 @@ pub const SUPPORT_SPACINGS: f32 = 2.0;
 pub const SUPPORT_NEIGHBOURS: usize = 8;
 
 impl<'a> DenseSupport<'a> {
-    /// Indexes the dense `positions`, whose noise level (in spacings, from
-    /// [`noise_level`](crate::core::denoise::noise_level)) is `noise`.
-    pub fn new(positions: &'a [Vec3], noise: f32) -> Self {
+    /// Indexes the dense `positions` (with unit `normals`, as many), whose noise level (in
+    /// spacings, from [`noise_level`](crate::core::denoise::noise_level)) is `noise`; `fitted`
+    /// when the simulation points were projected on local fits
+    /// ([`Simplification::projected`](crate::core::simplify::Simplification::projected)), so
+    /// that points taken from the dense cloud are projected alike.
+    pub fn new(positions: &'a [Vec3], normals: &'a [Vec3], noise: f32, fitted: bool) -> Self {
         Self {
             positions,
+            normals,
             index: KnnIndex::build(positions),
             reach: SUPPORT_SPACINGS + 3.0 * noise.max(0.0),
+            fit_k: fitted.then(|| crate::core::denoise::fit_k(noise)),
         }
     }
 
@@ -260,6 +277,34 @@ impl<'a> DenseSupport<'a> {
             (d - across * normal).length() <= self.reach * spacing && across.abs() <= 0.5 * longest
         })
     }
+
+    /// Indices of the `k` dense points nearest to `probe`.
+    pub(crate) fn near(&self, probe: Vec3, k: usize) -> impl Iterator<Item = u32> + '_ {
+        self.index.nearest(probe, k).into_iter().map(|nb| nb.index)
+    }
+
+    /// Position and unit normal of dense point `i` as given.
+    pub(crate) fn point(&self, i: u32) -> (Vec3, Vec3) {
+        let normal = self.normals.get(i as usize).copied().unwrap_or(Vec3::ZERO);
+        (self.positions[i as usize], normal.normalize_or_zero())
+    }
+
+    /// Dense point `i` as a simulation point: projected on its local fit where the simulation
+    /// points were.
+    pub(crate) fn fitted_point(&self, i: u32) -> (Vec3, Vec3) {
+        let (p, n) = self.point(i);
+        match self.fit_k {
+            Some(k) => crate::core::denoise::project_on_fit(
+                p,
+                n,
+                self.positions,
+                &self.index,
+                k,
+                &mut Vec::new(),
+            ),
+            None => (p, n),
+        }
+    }
 }
 
 /// Builds the spring network on simulation points with consistently oriented unit normals
@@ -274,7 +319,9 @@ pub fn build_network(
     build_network_over(positions, normals, config, None)
 }
 
-/// [`build_network`], closing gaps only where the `dense` surface the points came from lies.
+/// [`build_network`], closing gaps only where the `dense` surface the points came from lies,
+/// and filling holes no ear closes with fans from dense points, which join the network's
+/// points after the given ones.
 pub fn build_network_over(
     positions: &[Vec3],
     normals: &[Vec3],
@@ -340,6 +387,22 @@ pub fn build_network_over(
 
     // 2–3. One oriented mesh from the rings, holes closed.
     let mesh = mesh::build_mesh(positions, &oriented, &graph, candidates, &closable, dense);
+    // Points that fill holes join the simulation points.
+    let sampled = n;
+    let (positions, oriented, normals) = if mesh.added.is_empty() {
+        (Cow::Borrowed(positions), oriented, normals)
+    } else {
+        let mut positions = positions.to_vec();
+        let (mut oriented, mut normals) = (oriented, normals);
+        for &(p, normal) in &mesh.added {
+            positions.push(p);
+            oriented.push(normal);
+            normals.push(normal);
+        }
+        (Cow::Owned(positions), oriented, normals)
+    };
+    let positions: &[Vec3] = &positions;
+    let n = positions.len();
     let triangles = mesh.triangles();
     let mut edges: Vec<(u32, u32)> = triangles
         .iter()
@@ -354,7 +417,7 @@ pub fn build_network_over(
     let mut degree: Vec<usize> = (0..n).map(|i| adjacency.degree(i)).collect();
     let mut added: Vec<(u32, u32)> = Vec::new();
     let mut added_set: std::collections::HashSet<(u32, u32)> = std::collections::HashSet::new();
-    for i in 0..n {
+    for i in 0..sampled {
         for &j in graph.neighbours(i) {
             if degree[i] >= MIN_STRETCH_SPRINGS {
                 break;
@@ -454,6 +517,7 @@ pub fn build_network_over(
         disputed_candidates: mesh.stats.disputed,
         closing_triangles: mesh.stats.ears,
         inserted_points: mesh.stats.inserted,
+        filling_points: mesh.added.len(),
         isolated_points,
         fallback_springs,
         fallback_masses,
