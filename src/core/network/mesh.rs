@@ -221,7 +221,7 @@ pub(crate) fn build_mesh(
         b.insert_stragglers(graph);
         let closable = b.close(closable, graph);
         b.split_for_isolated(graph);
-        b.fill_with_centres(&closable);
+        b.fill_with_centres(&closable, graph);
         b.mesh.added = b.positions[positions.len()..]
             .iter()
             .copied()

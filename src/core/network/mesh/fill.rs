@@ -20,6 +20,7 @@ use std::f32::consts::TAU;
 use glam::Vec3;
 
 use super::{Builder, MAX_CLOSING_ANGLE, STEEP_COS, Wedge};
+use crate::core::knn::KnnGraph;
 
 /// Dense points tried as a hole's centre around each probe.
 const CENTRE_CANDIDATES: usize = 48;
@@ -42,7 +43,7 @@ struct Fan {
 impl Builder<'_> {
     /// Fills each hole whose points are mostly `closable` (see [`Builder::close`]) with a fan
     /// from the best centre, when one exists (see the module docs).
-    pub(super) fn fill_with_centres(&mut self, closable: &[bool]) {
+    pub(super) fn fill_with_centres(&mut self, closable: &[bool], graph: &KnnGraph) {
         let Some(dense) = self.dense else {
             return;
         };
@@ -64,10 +65,21 @@ impl Builder<'_> {
                 .collect();
             candidates.sort_unstable();
             candidates.dedup();
+            // A dense point that is a simulation point already (one left without a triangle
+            // inside the hole, say) would become a second point in the same place.
+            let taken: Vec<Vec3> = points
+                .iter()
+                .filter(|&&v| (v as usize) < graph.len())
+                .flat_map(|&v| graph.neighbours(v as usize))
+                .map(|&j| self.positions[j as usize])
+                .collect();
             let best = candidates
                 .into_iter()
                 .filter_map(|i| {
                     let (p, n) = dense.point(i);
+                    if taken.contains(&p) {
+                        return None;
+                    }
                     self.fan(&points, p, n).map(|fan| (i, fan))
                 })
                 .max_by(|a, b| a.1.quality.total_cmp(&b.1.quality));
@@ -234,6 +246,7 @@ mod tests {
     use glam::Vec3;
 
     use super::super::{Builder, MAX_CLOSING_ANGLE, SurfaceMesh};
+    use crate::core::knn::KnnIndex;
     use crate::core::network::DenseSupport;
 
     /// Points of a capsule: a cylinder of radius 1 from z = -2 to z = 0 with hemispherical
@@ -319,7 +332,8 @@ mod tests {
             assert!(b.wedge(v, u, x).is_none(), "no ear fits at a tube's end");
         }
 
-        b.fill_with_centres(&[true; 18]);
+        let graph = KnnIndex::build(&b.positions).knn_graph(&b.positions, 8);
+        b.fill_with_centres(&[true; 18], &graph);
 
         assert_eq!(b.mesh.stats.fans, 2);
         assert_eq!(b.positions.len(), 20);
@@ -356,7 +370,8 @@ mod tests {
         };
         let dense = DenseSupport::new(&dense_p, &dense_n, 0.0, false);
         let mut b = tube(&dense);
-        b.fill_with_centres(&[true; 18]);
+        let graph = KnnIndex::build(&b.positions).knn_graph(&b.positions, 8);
+        b.fill_with_centres(&[true; 18], &graph);
         assert_eq!(b.mesh.stats.fans, 0);
         assert_eq!(b.positions.len(), 18);
         assert_eq!(b.mesh.boundary_loops().len(), 2);
