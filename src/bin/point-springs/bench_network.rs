@@ -47,6 +47,8 @@ struct Row {
     points: usize,
     level_percent: f64,
     sim_points: usize,
+    /// Of `sim_points`, those the network added to fill holes (fans and refinement).
+    added_points: usize,
     noise_level: f32,
     denoised: bool,
     closed: bool,
@@ -75,9 +77,11 @@ pub fn bench_network(args: &NetworkArgs) -> Result<(), Failure> {
     let mut rows = Vec::new();
     if !args.json {
         println!(
-            "| cloud | points | level | sim | noise | closed | χ | comp. | loops | boundary pts | fold-overs | crossings | non-manifold | no triangle | closing tris | Σm | noise s | simplify s | network s |"
+            "| cloud | points | level | sim | added | noise | closed | χ | comp. | loops | boundary pts | fold-overs | crossings | non-manifold | no triangle | closing tris | Σm | noise s | simplify s | network s |"
         );
-        println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
+        println!(
+            "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
+        );
     }
     for file in &args.files {
         let mut cloud = load(file, args.format)?;
@@ -134,6 +138,7 @@ pub fn bench_network(args: &NetworkArgs) -> Result<(), Failure> {
                 points: positions.len(),
                 level_percent: level,
                 sim_points: r.points,
+                added_points: r.filling_points,
                 noise_level: measured,
                 denoised: kept.projected.is_some(),
                 closed: r.closed,
@@ -153,11 +158,12 @@ pub fn bench_network(args: &NetworkArgs) -> Result<(), Failure> {
             };
             if !args.json {
                 println!(
-                    "| {} | {} | {}% | {} | {:.2}{} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {:.4} | {:.2} | {:.2} | {:.3} |",
+                    "| {} | {} | {}% | {} | {} | {:.2}{} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {:.4} | {:.2} | {:.2} | {:.3} |",
                     row.cloud,
                     row.points,
                     row.level_percent,
                     row.sim_points,
+                    row.added_points,
                     row.noise_level,
                     if row.denoised { " (fits)" } else { "" },
                     if row.closed { "yes" } else { "no" },

@@ -721,7 +721,7 @@ fn run(command: Command) -> Result<(), Failure> {
                     report.stretch_springs, report.bend_springs
                 );
                 println!(
-                    "surface       {}, Euler characteristic {}, {} triangles ({} closing holes, around {} points added from the dense cloud), {} component(s)",
+                    "surface       {}, Euler characteristic {}, {} triangles ({} closing holes, with {} points added from the dense cloud), {} component(s)",
                     if report.closed { "closed" } else { "open" },
                     report.euler_characteristic,
                     report.triangles,

@@ -23,6 +23,7 @@
 //! fold-overs, crossing springs and non-manifold edges.
 
 use std::borrow::Cow;
+use std::f32::consts::TAU;
 
 use glam::Vec3;
 use rayon::prelude::*;
@@ -159,8 +160,9 @@ pub struct NetworkReport {
     pub closing_triangles: usize,
     /// Points without a triangle inserted by splitting a triangle.
     pub inserted_points: usize,
-    /// Dense points added as simulation points, each the centre of a fan filling a hole no
-    /// ear closed (numbered after the simulation points given).
+    /// Dense points added as simulation points to fill holes: centres of fans over holes no
+    /// ear closed, and points sampling holes more finely where they were left (see
+    /// [`build_network_over`]); numbered after the simulation points given.
     pub filling_points: usize,
     /// Points left without any triangle.
     pub isolated_points: usize,
@@ -319,15 +321,128 @@ pub fn build_network(
     build_network_over(positions, normals, config, None)
 }
 
-/// [`build_network`], closing gaps only where the `dense` surface the points came from lies,
-/// and filling holes no ear closes with fans from dense points, which join the network's
-/// points after the given ones.
+/// [`build_network`], closing gaps only where the `dense` surface the points came from lies and
+/// filling holes no ear closes with fans from dense points. Where holes are left (a thin part
+/// or a sharp turn sampled too coarsely for its points' rings to agree), the dense points in
+/// their gaps are added about twice as finely as the holes' edges and the network is built
+/// again, up to [`REFINE_ROUNDS`] times, each kept only when it leaves fewer points on holes.
+/// Added points join the network's points after the given ones.
 pub fn build_network_over(
     positions: &[Vec3],
     normals: &[Vec3],
     config: &NetworkConfig,
     dense: Option<&DenseSupport>,
 ) -> Result<SpringNetwork, NetworkError> {
+    let (mut net, mut holes) = build_once(positions, normals, config, dense)?;
+    let Some(dense) = dense else {
+        return Ok(net);
+    };
+    for _ in 0..REFINE_ROUNDS {
+        let open = holes.points();
+        if open == 0 {
+            break;
+        }
+        let extra = refinement_points(&net.positions, &holes, dense);
+        if extra.is_empty() {
+            break;
+        }
+        let (mut p, mut n) = (net.positions.clone(), net.normals.clone());
+        for (q, normal) in extra {
+            p.push(q);
+            n.push(normal);
+        }
+        // A refinement that fails, or leaves as much open, is not kept.
+        let Ok((next, next_holes)) = build_once(&p, &n, config, Some(dense)) else {
+            break;
+        };
+        if next_holes.points() >= open {
+            break;
+        }
+        (net, holes) = (next, next_holes);
+    }
+    net.report.filling_points = net.len() - positions.len();
+    Ok(net)
+}
+
+/// Rounds of refinement at most (see [`build_network_over`]).
+pub const REFINE_ROUNDS: usize = 4;
+
+/// Where refinement probes a hole point's gap for dense points: (fraction of the gap's angle,
+/// distance in the hole's mean edge lengths).
+const REFINE_PROBES: [(f32, f32); 3] = [(0.25, 0.5), (0.5, 0.5), (0.75, 0.5)];
+
+/// Nearest spacing of the points refinement adds, to each other and to the simulation points,
+/// in the hole's mean edge lengths: the hole's region is sampled about twice as finely.
+const REFINE_MIN_GAP: f32 = 0.4;
+
+/// The holes a build left, and the normals it oriented the mesh around.
+struct Holes {
+    /// Boundary loops most of whose points are closable, as point indices in the order
+    /// [`mesh::SurfaceMesh::boundary_loops`] walks them.
+    loops: Vec<Vec<u32>>,
+    /// The points' unit normals, consistently oriented.
+    normals: Vec<Vec3>,
+}
+
+impl Holes {
+    /// Points on holes, counted once per loop through them.
+    fn points(&self) -> usize {
+        self.loops.iter().map(Vec::len).sum()
+    }
+}
+
+/// The dense points that fill the gaps of the `holes` (loops of indices into `positions`), as
+/// simulation points (see [`DenseSupport::fitted_point`]): at each loop point, those nearest to
+/// probes in its gap (between the loop's previous and next points, counter-clockwise in its
+/// tangent plane) at [`REFINE_PROBES`] of the hole's mean edge, no nearer than
+/// [`REFINE_MIN_GAP`] mean edges to a point already there or already added.
+fn refinement_points(positions: &[Vec3], holes: &Holes, dense: &DenseSupport) -> Vec<(Vec3, Vec3)> {
+    let index = KnnIndex::build(positions);
+    let mut out: Vec<(Vec3, Vec3)> = Vec::new();
+    for hole in &holes.loops {
+        let m = hole.len();
+        let at = |i: usize| positions[hole[i % m] as usize];
+        let edge = (0..m).map(|i| at(i).distance(at(i + 1))).sum::<f32>() / m as f32;
+        let gap = REFINE_MIN_GAP * edge;
+        for (i, &point) in hole.iter().enumerate() {
+            let (prev, v, next) = (at(i + m - 1), at(i), at(i + 1));
+            let (t1, t2) = holes.normals[point as usize].any_orthonormal_pair();
+            let angle = |q: Vec3| {
+                let d = q - v;
+                d.dot(t2).atan2(d.dot(t1))
+            };
+            let start = angle(prev);
+            let width = (angle(next) - start).rem_euclid(TAU);
+            for (turn, reach) in REFINE_PROBES {
+                let (sin, cos) = (start + turn * width).sin_cos();
+                let probe = v + (t1 * cos + t2 * sin) * reach * edge;
+                let Some(j) = dense.near(probe, 1).next() else {
+                    continue;
+                };
+                if dense.point(j).0.distance(probe) > gap {
+                    continue; // no dense surface there
+                }
+                let (q, normal) = dense.fitted_point(j);
+                let free = index
+                    .nearest(q, 1)
+                    .first()
+                    .is_some_and(|nb| nb.dist2.sqrt() > gap);
+                if free && out.iter().all(|&(o, _)| o.distance(q) > gap) {
+                    out.push((q, normal));
+                }
+            }
+        }
+    }
+    out
+}
+
+/// One build of [`build_network_over`]: the network, and the holes it left.
+fn build_once(
+    positions: &[Vec3],
+    normals: &[Vec3],
+    config: &NetworkConfig,
+    dense: Option<&DenseSupport>,
+) -> Result<(SpringNetwork, Holes), NetworkError> {
     validate(positions, normals, config)?;
     let n = positions.len();
     let k = config.k.min(n - 1);
@@ -529,7 +644,7 @@ pub fn build_network_over(
         ring_indices.extend_from_slice(ring);
         ring_offsets.push(ring_indices.len() as u32);
     }
-    Ok(SpringNetwork {
+    let network = SpringNetwork {
         positions: positions.to_vec(),
         normals,
         masses,
@@ -540,7 +655,12 @@ pub fn build_network_over(
         ring_offsets,
         ring_indices,
         report,
-    })
+    };
+    let holes = Holes {
+        loops: mesh.holes,
+        normals: oriented,
+    };
+    Ok((network, holes))
 }
 
 /// Knn pairs whose normals may point apart before orientation is redone: a consistently
@@ -696,4 +816,72 @@ fn count_components(n: usize, edges: impl Iterator<Item = (u32, u32)>) -> usize 
         }
     }
     components
+}
+
+#[cfg(test)]
+mod tests {
+    use glam::Vec3;
+
+    use super::{DenseSupport, Holes, REFINE_MIN_GAP, refinement_points};
+
+    #[test]
+    fn refinement_samples_a_hole_from_the_dense_points_in_its_gaps() {
+        // A dense square 4 × 4 at spacing 0.05; simulation points every 1 around a missing
+        // centre: the hole's loop runs around the middle 2 × 2 block.
+        let dense: Vec<Vec3> = (0..=80)
+            .flat_map(|y| (0..=80).map(move |x| Vec3::new(x as f32, y as f32, 0.0) * 0.05))
+            .collect();
+        let dense_normals = vec![Vec3::Z; dense.len()];
+        let support = DenseSupport::new(&dense, &dense_normals, 0.0, false);
+        let positions: Vec<Vec3> = (0..25)
+            .map(|i| Vec3::new((i % 5) as f32, (i / 5) as f32, 0.0))
+            .filter(|p| *p != Vec3::new(2.0, 2.0, 0.0))
+            .collect();
+        let normals = vec![Vec3::Z; positions.len()];
+        let index = |x: f32, y: f32| {
+            positions
+                .iter()
+                .position(|p| *p == Vec3::new(x, y, 0.0))
+                .unwrap() as u32
+        };
+        // Clockwise around +z (as boundary loops of holes run).
+        let hole: Vec<u32> = [
+            (1.0, 1.0),
+            (1.0, 2.0),
+            (1.0, 3.0),
+            (2.0, 3.0),
+            (3.0, 3.0),
+            (3.0, 2.0),
+            (3.0, 1.0),
+            (2.0, 1.0),
+        ]
+        .into_iter()
+        .map(|(x, y)| index(x, y))
+        .collect();
+        let holes = Holes {
+            loops: vec![hole.clone()],
+            normals,
+        };
+        let added = refinement_points(&positions, &holes, &support);
+        assert!(added.len() >= 4, "{added:?}");
+        let edge = 1.0;
+        for (i, &(p, n)) in added.iter().enumerate() {
+            assert_eq!(n, Vec3::Z);
+            assert!(
+                (0.99..=3.01).contains(&p.x) && (0.99..=3.01).contains(&p.y),
+                "{p}"
+            );
+            for q in positions.iter().chain(added[..i].iter().map(|(q, _)| q)) {
+                assert!(
+                    p.distance(*q) > REFINE_MIN_GAP * edge - 1e-5,
+                    "{p} near {q}"
+                );
+            }
+        }
+        // Every point of the hole gets new points in its gap, half an edge in.
+        for &v in &hole {
+            let p = positions[v as usize];
+            assert!(added.iter().any(|(q, _)| q.distance(p) < 0.9 * edge), "{p}");
+        }
+    }
 }

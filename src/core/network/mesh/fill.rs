@@ -95,7 +95,7 @@ impl Builder<'_> {
     }
 
     /// Whether most of the loop's `points` are closable: a hole, not an outer rim.
-    fn is_hole(&self, points: &[u32], closable: &[bool]) -> bool {
+    pub(super) fn is_hole(&self, points: &[u32], closable: &[bool]) -> bool {
         let inner = points
             .iter()
             .filter(|&&v| closable.get(v as usize).copied().unwrap_or(true))
@@ -193,7 +193,11 @@ impl Builder<'_> {
         }
         let dense = self.dense?;
         (0..m)
-            .all(|i| dense.covers([at(i + 1), at(i), centre]))
+            .all(|i| {
+                let corners = [points[(i + 1) % m], points[i], u32::MAX];
+                let tri = [at(i + 1), at(i), centre];
+                dense.covers(tri) && !self.overlaps_apart_at(corners, tri)
+            })
             .then_some(Fan {
                 centre,
                 normal,
@@ -246,7 +250,7 @@ mod tests {
     use glam::Vec3;
 
     use super::super::{Builder, MAX_CLOSING_ANGLE, SurfaceMesh};
-    use crate::core::knn::KnnIndex;
+    use crate::core::knn::{KnnGraph, KnnIndex};
     use crate::core::network::DenseSupport;
 
     /// Points of a capsule: a cylinder of radius 1 from z = -2 to z = 0 with hemispherical
@@ -283,9 +287,8 @@ mod tests {
         (p, n)
     }
 
-    /// Three rings of six points on the capsule's cylinder, meshed as a tube whose ends no ear
-    /// can close (every gap at an end is a half-turn in its point's tangent plane).
-    fn tube<'a>(dense: &'a DenseSupport<'a>) -> Builder<'a> {
+    /// Three rings of six points on the capsule's cylinder, with outward normals.
+    fn tube_points() -> (Vec<Vec3>, Vec<Vec3>) {
         let (mut positions, mut normals) = (Vec::new(), Vec::new());
         for ring in 0..3 {
             for j in 0..6 {
@@ -295,7 +298,21 @@ mod tests {
                 normals.push(r);
             }
         }
+        (positions, normals)
+    }
+
+    /// The nearest neighbours of the tube's points.
+    fn tube_graph() -> KnnGraph {
+        let (positions, _) = tube_points();
+        KnnIndex::build(&positions).knn_graph(&positions, 8)
+    }
+
+    /// The tube's points meshed as a tube whose ends no ear can close (every gap at an end is
+    /// a half-turn in its point's tangent plane).
+    fn tube<'a>(dense: &'a DenseSupport<'a>, graph: &'a KnnGraph) -> Builder<'a> {
+        let (positions, normals) = tube_points();
         let mut b = Builder {
+            graph,
             frames: normals.iter().map(|n| n.any_orthonormal_pair()).collect(),
             positions,
             normals,
@@ -323,7 +340,8 @@ mod tests {
     fn the_open_ends_of_a_tube_get_fans_from_the_dense_tips() {
         let (dense_p, dense_n) = capsule(0.05);
         let dense = DenseSupport::new(&dense_p, &dense_n, 0.0, false);
-        let mut b = tube(&dense);
+        let graph = tube_graph();
+        let mut b = tube(&dense, &graph);
         assert_eq!(b.mesh.triangles().len(), 24, "the tube's wall");
         let loops = b.mesh.boundary_loops();
         assert_eq!(loops.len(), 2);
@@ -332,7 +350,6 @@ mod tests {
             assert!(b.wedge(v, u, x).is_none(), "no ear fits at a tube's end");
         }
 
-        let graph = KnnIndex::build(&b.positions).knn_graph(&b.positions, 8);
         b.fill_with_centres(&[true; 18], &graph);
 
         assert_eq!(b.mesh.stats.fans, 2);
@@ -369,8 +386,8 @@ mod tests {
                 .unzip()
         };
         let dense = DenseSupport::new(&dense_p, &dense_n, 0.0, false);
-        let mut b = tube(&dense);
-        let graph = KnnIndex::build(&b.positions).knn_graph(&b.positions, 8);
+        let graph = tube_graph();
+        let mut b = tube(&dense, &graph);
         b.fill_with_centres(&[true; 18], &graph);
         assert_eq!(b.mesh.stats.fans, 0);
         assert_eq!(b.positions.len(), 18);
