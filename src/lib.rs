@@ -67,9 +67,10 @@ pub mod prelude {
     pub use crate::plugin::render::{SpringGizmos, SurfelRender, SurfelRenderPlugin};
     #[cfg(feature = "plugin")]
     pub use crate::plugin::{
-        CloudAsset, DeformableSurface, DenseSurface, PointSpringsPlugin, PointSpringsSystems,
-        PreparationProgress, SceneAsset, SceneTimeline, SimulationPoints, SurfaceAnchors,
-        SurfaceForces, SurfaceMasses, SurfaceMaterial, SurfaceNetwork, SurfaceSettings,
-        SurfaceSprings, SurfaceStatus, SurfaceStepper, TransferTiming,
+        CloudAsset, DeformableSurface, DenseSurface, GrabMessage, GrabSettings, Grabs,
+        PointSpringsPlugin, PointSpringsSystems, PreparationProgress, SceneAsset, SceneTimeline,
+        SimulationPoints, SurfaceAnchors, SurfaceForces, SurfaceMasses, SurfaceMaterial,
+        SurfaceNetwork, SurfaceSettings, SurfaceSprings, SurfaceStatus, SurfaceStepper,
+        TransferTiming,
     };
 }

@@ -442,3 +442,106 @@ fn a_material_changed_through_reflection_reaches_the_springs() {
     }));
     assert_eq!(status(&app, e), SurfaceStatus::Ready);
 }
+
+/// The simulation point of `surface` nearest to `p`, and its position.
+fn nearest_point(app: &App, surface: Entity, p: Vec3) -> (usize, Vec3) {
+    let points = app.world().get::<SimulationPoints>(surface).unwrap();
+    points
+        .iter_positions()
+        .enumerate()
+        .min_by(|a, b| a.1.distance(p).total_cmp(&b.1.distance(p)))
+        .unwrap()
+}
+
+#[test]
+fn a_grab_dents_the_sphere_and_it_recovers_after_release() {
+    let mut app = create_app(&assets_dir(), TICK);
+    let sphere = app.world_mut().spawn(floating(1500, 150)).id();
+    settle(&mut app, &[sphere]);
+    let (top, top_rest) = nearest_point(&app, sphere, Vec3::Y);
+    let (bottom, bottom_rest) = nearest_point(&app, sphere, -Vec3::Y);
+    let y = |app: &App, i: usize| {
+        app.world()
+            .get::<SimulationPoints>(sphere)
+            .unwrap()
+            .position(i)
+            .y
+    };
+    // One grab holds the bottom where it is; another presses the top in by 0.3.
+    app.world_mut().write_message(GrabMessage::Start {
+        key: 1,
+        surface: sphere,
+        at: bottom_rest,
+    });
+    app.world_mut().write_message(GrabMessage::Start {
+        key: 2,
+        surface: sphere,
+        at: top_rest,
+    });
+    app.update();
+    let grabs = app.world().resource::<Grabs>();
+    assert_eq!(grabs.len(), 2);
+    let (held_by, held) = grabs.get(2).unwrap();
+    assert_eq!(held_by, sphere);
+    // The default radius (1.5 mean springs) holds a small patch, not one point.
+    assert!((2..30).contains(&held), "{held} points held");
+    assert_eq!(
+        app.world().get::<SurfaceAnchors>(sphere).unwrap().len(),
+        grabs.get(1).unwrap().1 + held
+    );
+    app.world_mut().write_message(GrabMessage::Move {
+        key: 2,
+        target: top_rest - Vec3::Y * 0.3,
+    });
+    for _ in 0..120 {
+        app.update();
+    }
+    let dent = top_rest.y - y(&app, top);
+    assert!(dent > 0.15, "the top went in by {dent}");
+    assert!(
+        (y(&app, bottom) - bottom_rest.y).abs() < 0.05,
+        "the bottom is held"
+    );
+    // The dense surface followed.
+    let dense = app.world().get::<DenseSurface>(sphere).unwrap();
+    let top_dense = dense
+        .positions()
+        .iter()
+        .map(|p| p.y)
+        .fold(f32::MIN, f32::max);
+    assert!(top_dense < 1.0 - 0.1, "dense top at {top_dense}");
+
+    // Release the top: its anchors go, and the springs push the dent out again.
+    app.world_mut().write_message(GrabMessage::End { key: 2 });
+    app.update();
+    assert_eq!(app.world().resource::<Grabs>().len(), 1);
+    assert_eq!(
+        app.world().get::<SurfaceAnchors>(sphere).unwrap().len(),
+        app.world().resource::<Grabs>().get(1).unwrap().1
+    );
+    for _ in 0..600 {
+        app.update();
+    }
+    let left = top_rest.y - y(&app, top);
+    println!("grab: {held} points held, dent {dent:.3}, {left:.4} left after 600 ticks");
+    assert!(left.abs() < 0.2 * dent, "{left} of a {dent} dent is left");
+    // Messages for nothing are ignored: a drag after release, an entity that is no surface.
+    let stranger = app.world_mut().spawn_empty().id();
+    app.world_mut().write_message(GrabMessage::Move {
+        key: 2,
+        target: Vec3::ZERO,
+    });
+    app.world_mut().write_message(GrabMessage::Start {
+        key: 3,
+        surface: stranger,
+        at: Vec3::ZERO,
+    });
+    app.world_mut().write_message(GrabMessage::Start {
+        key: 4,
+        surface: sphere,
+        at: Vec3::NAN,
+    });
+    app.update();
+    assert_eq!(app.world().resource::<Grabs>().len(), 1);
+    assert!(status(&app, sphere).is_ready());
+}

@@ -31,6 +31,7 @@
 
 pub mod assets;
 pub mod components;
+pub mod grab;
 pub mod prepare;
 #[cfg(feature = "render")]
 pub mod render;
@@ -45,6 +46,7 @@ pub use components::{
     SurfaceAnchors, SurfaceForces, SurfaceMasses, SurfaceMaterial, SurfaceNetwork, SurfacePressure,
     SurfaceSettings, SurfaceSource, SurfaceSprings, SurfaceStatus, SurfaceStepper, TransferTiming,
 };
+pub use grab::{GrabMessage, GrabSettings, Grabs};
 pub use prepare::PreparationPool;
 
 /// The plugin. Add it next to `DefaultPlugins` (or `MinimalPlugins`, plus `AssetPlugin`
@@ -77,9 +79,9 @@ impl Default for PointSpringsPlugin {
 pub enum PointSpringsSystems {
     /// New surfaces are started and finished preparations collected (in [`PreUpdate`]).
     Prepare,
-    /// Force accumulation: scene timelines, then each surface's springs (eq 2–3), gravity
-    /// (eq 4), anchors and pins (eq 5), drag and gas pressure. Put systems that add to
-    /// [`SurfaceForces`] here.
+    /// Force accumulation: grabs ([`GrabMessage`]) and scene timelines move their anchors,
+    /// then each surface's springs (eq 2–3), gravity (eq 4), anchors and pins (eq 5), drag
+    /// and gas pressure. Put systems that add to [`SurfaceForces`] here.
     Forces,
     /// Euler stepping (explicit, symplectic or implicit, sub-stepped where needed), with
     /// the game's forces added.
@@ -94,6 +96,10 @@ impl Plugin for PointSpringsPlugin {
             .register_type::<SurfaceSettings>()
             .register_type::<SurfaceMaterial>()
             .register_type::<PreparationProgress>()
+            .register_type::<GrabSettings>()
+            .add_message::<GrabMessage>()
+            .init_resource::<GrabSettings>()
+            .init_resource::<Grabs>()
             .configure_sets(
                 self.schedule,
                 (
@@ -113,6 +119,7 @@ impl Plugin for PointSpringsPlugin {
                 self.schedule,
                 (
                     (
+                        grab::apply_grabs,
                         simulate::drive_timelines,
                         simulate::apply_materials,
                         simulate::accumulate_forces,
