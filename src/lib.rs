@@ -64,6 +64,8 @@ pub mod prelude {
     pub use crate::core::{Aabb, PointCloud};
 
     #[cfg(feature = "render")]
+    pub use crate::plugin::pick::{PointerGrabSettings, PointerGrabs, SurfacePickingPlugin};
+    #[cfg(feature = "render")]
     pub use crate::plugin::render::{SpringGizmos, SurfelRender, SurfelRenderPlugin};
     #[cfg(feature = "plugin")]
     pub use crate::plugin::{

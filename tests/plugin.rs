@@ -24,6 +24,11 @@ fn assets_dir() -> PathBuf {
 
 /// A headless app reading files from `assets` and ticking `tick` per update.
 fn create_app(assets: &Path, tick: Duration) -> App {
+    create_app_with(assets, tick, |_| {})
+}
+
+/// [`create_app`] with more plugins, added by `extra` before the app is finished.
+fn create_app_with(assets: &Path, tick: Duration, extra: impl FnOnce(&mut App)) -> App {
     let mut app = App::new();
     app.add_plugins((
         MinimalPlugins,
@@ -35,6 +40,7 @@ fn create_app(assets: &Path, tick: Duration) -> App {
     ))
     .insert_resource(TimeUpdateStrategy::ManualDuration(tick))
     .insert_resource(Time::<Fixed>::from_duration(tick));
+    extra(&mut app);
     app.finish();
     app.cleanup();
     // The first update only starts the clock.
@@ -544,4 +550,129 @@ fn a_grab_dents_the_sphere_and_it_recovers_after_release() {
     app.update();
     assert_eq!(app.world().resource::<Grabs>().len(), 1);
     assert!(status(&app, sphere).is_ready());
+}
+
+/// The pointer path (feature `render`): the surfel picking backend answers a ray with the
+/// surface under it; a press on the surface starts a grab, the pointer's ray drags it on the
+/// plane facing the camera, and a release anywhere ends it. Bevy builds rays only for a
+/// window's cursor, so the test fills the `RayMap` itself and writes the `Pointer<Press>` and
+/// `PointerInput` messages that Bevy's picking would (it does not run Bevy's hover step).
+#[cfg(feature = "render")]
+#[test]
+fn a_pointer_press_drag_and_release_grab_the_surface() {
+    use bevy::camera::NormalizedRenderTarget;
+    use bevy::ecs::message::Messages;
+    use bevy::math::Ray3d;
+    use bevy::picking::backend::PointerHits;
+    use bevy::picking::backend::ray::{RayId, RayMap};
+    use bevy::picking::pointer::{Location, PointerAction, PointerButton, PointerId, PointerInput};
+    use bevy::picking::prelude::{Pointer, Press};
+
+    let mut app = create_app_with(&assets_dir(), TICK, |app| {
+        app.add_plugins(SurfacePickingPlugin);
+    });
+    let sphere = app
+        .world_mut()
+        .spawn((floating(1500, 150), GlobalTransform::default()))
+        .id();
+    settle(&mut app, &[sphere]);
+    // Hold the bottom still, from code.
+    let (_, bottom) = nearest_point(&app, sphere, -Vec3::Y);
+    app.world_mut().write_message(GrabMessage::Start {
+        key: 99,
+        surface: sphere,
+        at: bottom,
+    });
+    // A camera above, looking down; the mouse's ray through the top of the sphere.
+    let eye = Vec3::Y * 5.0;
+    let camera = app
+        .world_mut()
+        .spawn(GlobalTransform::from(
+            Transform::from_translation(eye).looking_at(Vec3::ZERO, Vec3::Z),
+        ))
+        .id();
+    let aim = |app: &mut App, x: f32| {
+        let ray = Ray3d::new(eye + Vec3::X * x, -Dir3::Y);
+        let mut rays = app.world_mut().resource_mut::<RayMap>();
+        rays.map.clear();
+        rays.map.insert(RayId::new(camera, PointerId::Mouse), ray);
+    };
+    aim(&mut app, 0.0);
+    app.update();
+    let hits = app.world().resource::<Messages<PointerHits>>();
+    let hits: Vec<PointerHits> = hits.iter_current_update_messages().cloned().collect();
+    assert_eq!(hits.len(), 1, "one ray, one report");
+    let (entity, hit) = hits[0].picks[0].clone();
+    assert_eq!(entity, sphere);
+    let at = hit.position.unwrap();
+    assert!(
+        (at.y - 1.0).abs() < 0.05 && at.x.abs() < 1e-4,
+        "hit at {at}"
+    );
+    assert!((hit.depth - (5.0 - at.y)).abs() < 1e-4);
+    assert!(hit.normal.unwrap().y > 0.9, "facing the camera");
+    // A ray that misses the sphere reports nothing.
+    aim(&mut app, 1.5);
+    app.update();
+    let missed = app.world().resource::<Messages<PointerHits>>();
+    assert_eq!(missed.iter_current_update_messages().count(), 0);
+
+    // Press on the top: a grab starts there.
+    let location = Location {
+        target: NormalizedRenderTarget::None {
+            width: 1280,
+            height: 720,
+        },
+        position: Vec2::new(640.0, 360.0),
+    };
+    aim(&mut app, 0.0);
+    app.world_mut().write_message(Pointer::new(
+        PointerId::Mouse,
+        location.clone(),
+        Press {
+            button: PointerButton::Primary,
+            hit: hit.clone(),
+            count: 1,
+        },
+        sphere,
+    ));
+    app.update();
+    assert!(
+        app.world()
+            .resource::<PointerGrabs>()
+            .holds(PointerId::Mouse)
+    );
+    let (held_by, held) = app.world().resource::<Grabs>().get(0).unwrap();
+    assert_eq!(held_by, sphere);
+    assert!(held >= 2, "{held}");
+    // Drag: the pointer's ray moves 0.3 along x; the target follows it on the plane y = hit.
+    aim(&mut app, 0.3);
+    for _ in 0..120 {
+        app.update();
+    }
+    let (top, _) = nearest_point(&app, sphere, Vec3::new(0.3, 1.0, 0.0));
+    let moved = app
+        .world()
+        .get::<SimulationPoints>(sphere)
+        .unwrap()
+        .position(top);
+    println!(
+        "pointer: hit {at}, depth {}, {held} points held, top dragged to {moved}",
+        hit.depth
+    );
+    assert!(moved.x > 0.2, "the top followed the drag to {moved}");
+    // Release anywhere: the grab ends; the bottom's grab from code stays.
+    app.world_mut().write_message(PointerInput::new(
+        PointerId::Mouse,
+        location,
+        PointerAction::Release(PointerButton::Primary),
+    ));
+    app.update();
+    assert!(
+        !app.world()
+            .resource::<PointerGrabs>()
+            .holds(PointerId::Mouse)
+    );
+    let grabs = app.world().resource::<Grabs>();
+    assert_eq!((grabs.len(), grabs.get(0)), (1, None));
 }

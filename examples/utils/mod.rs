@@ -73,7 +73,9 @@ impl DemoArgs {
                     println!(
                         "options: [FILE] [--screenshot PATH.png] [--frames N] [--size WxH] [--gizmos]"
                     );
-                    println!("mouse: right-drag orbits, wheel zooms");
+                    println!(
+                        "mouse: left-drag pokes and pulls a surface, right-drag orbits, wheel zooms"
+                    );
                     println!("keys: space pauses, G cycles the spring gizmos, R restarts");
                     std::process::exit(0);
                 }
@@ -89,7 +91,7 @@ impl DemoArgs {
     }
 }
 
-/// Window, lighting, the plugin with drawing, the orbit camera, keys, and the
+/// Window, lighting, the plugin with drawing and mouse grabs, the orbit camera, keys, and the
 /// screenshot-and-exit mode. Add it instead of `DefaultPlugins`.
 pub struct DemoPlugin {
     /// Window title.
@@ -111,6 +113,7 @@ impl Plugin for DemoPlugin {
             }),
             PointSpringsPlugin::default(),
             SurfelRenderPlugin,
+            SurfacePickingPlugin,
         ))
         .insert_resource(self.args.clone())
         .insert_resource(Time::<Fixed>::from_hz(TICK_HZ))

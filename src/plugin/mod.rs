@@ -32,6 +32,8 @@
 pub mod assets;
 pub mod components;
 pub mod grab;
+#[cfg(feature = "render")]
+pub mod pick;
 pub mod prepare;
 #[cfg(feature = "render")]
 pub mod render;
