@@ -47,17 +47,7 @@ impl Builder<'_> {
         let Some(dense) = self.dense else {
             return;
         };
-        for points in self.mesh.boundary_loops() {
-            let m = points.len();
-            if !(3..=MAX_FAN_LOOP).contains(&m) {
-                continue;
-            }
-            let mut distinct = points.clone();
-            distinct.sort_unstable();
-            distinct.dedup();
-            if !self.is_hole(&points, closable) || distinct.len() != m {
-                continue; // an outer rim, or a loop through a pinch
-            }
+        for points in self.holes_up_to(MAX_FAN_LOOP, closable) {
             let mut candidates: Vec<u32> = self
                 .probes(&points)
                 .into_iter()
@@ -92,6 +82,21 @@ impl Builder<'_> {
             let fan = self.fan(&points, p, n).unwrap_or(raw);
             self.insert_fan(&points, fan.centre, fan.normal);
         }
+    }
+
+    /// The boundary loops of 3 to `max` distinct points most of whose points are `closable`
+    /// (holes: not an outer rim, nor a loop through a pinch).
+    pub(super) fn holes_up_to(&self, max: usize, closable: &[bool]) -> Vec<Vec<u32>> {
+        let mut holes = self.mesh.boundary_loops();
+        holes.retain(|points| {
+            let mut distinct = points.clone();
+            distinct.sort_unstable();
+            distinct.dedup();
+            (3..=max).contains(&points.len())
+                && distinct.len() == points.len()
+                && self.is_hole(points, closable)
+        });
+        holes
     }
 
     /// Whether most of the loop's `points` are closable: a hole, not an outer rim.

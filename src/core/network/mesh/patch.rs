@@ -42,17 +42,7 @@ impl Builder<'_> {
     /// Triangulates each hole left whose points are mostly `closable`, when a triangulation
     /// fits (see the module docs).
     pub(super) fn patch_holes(&mut self, closable: &[bool]) {
-        for points in self.mesh.boundary_loops() {
-            let m = points.len();
-            if !(3..=MAX_PATCH_LOOP).contains(&m) {
-                continue;
-            }
-            let mut distinct = points.clone();
-            distinct.sort_unstable();
-            distinct.dedup();
-            if !self.is_hole(&points, closable) || distinct.len() != m {
-                continue; // an outer rim, or a loop through a pinch
-            }
+        for points in self.holes_up_to(MAX_PATCH_LOOP, closable) {
             if let Some(triangles) = self.triangulate(&points) {
                 self.insert_patch(&points, &triangles);
             }
