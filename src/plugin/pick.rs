@@ -279,3 +279,43 @@ fn release_grabs(
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use bevy::picking::pointer::PointerId;
+    use bevy::prelude::*;
+
+    use super::{grab_key, ray_meets_box};
+
+    #[test]
+    fn rays_meet_boxes_they_pass_through_and_only_ahead() {
+        let unit = (Vec3::splat(-1.0), Vec3::ONE);
+        assert!(ray_meets_box(Vec3::Z * 5.0, -Vec3::Z, unit));
+        assert!(
+            !ray_meets_box(Vec3::Z * 5.0, Vec3::Z, unit),
+            "behind the origin"
+        );
+        assert!(!ray_meets_box(Vec3::new(1.5, 0.0, 5.0), -Vec3::Z, unit));
+        assert!(ray_meets_box(Vec3::ZERO, Vec3::X, unit), "from inside");
+        // Along an axis, on a face's plane: counted as meeting (a pick is then tested in full).
+        assert!(ray_meets_box(Vec3::new(1.0, 0.0, 5.0), -Vec3::Z, unit));
+        assert!(ray_meets_box(
+            Vec3::new(3.0, 3.0, 0.0),
+            Vec3::new(-1.0, -1.0, 0.0).normalize(),
+            unit
+        ));
+    }
+
+    #[test]
+    fn pointers_get_distinct_grab_keys() {
+        let keys = [
+            grab_key(PointerId::Mouse),
+            grab_key(PointerId::Touch(0)),
+            grab_key(PointerId::Touch(1)),
+            grab_key(PointerId::Custom(bevy::asset::uuid::Uuid::from_u128(7))),
+        ];
+        for (i, a) in keys.iter().enumerate() {
+            assert!(keys[i + 1..].iter().all(|b| a != b), "{keys:?}");
+        }
+    }
+}
