@@ -66,8 +66,8 @@ fn setup(
     spawn_camera_and_light(&mut commands, Vec3::new(0.0, 0.1, 0.0), 4.0, 0.5, 0.75);
 }
 
-/// The finger follows the pull: shown while it holds the sphere, at the mean target of the
-/// points it holds.
+/// The finger follows the pull: shown while anchors hold the sphere (the scene's poke, or a
+/// mouse grab), at the mean target of the points they hold.
 fn move_finger(
     surfaces: Query<(&SurfaceAnchors, &GlobalTransform)>,
     mut fingers: Query<(&mut Transform, &mut Visibility), With<Finger>>,
