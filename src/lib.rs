@@ -16,7 +16,8 @@
 //!   entity whose components hold its arrays; it is prepared in the background and
 //!   simulated on the fixed tick in the chained sets force accumulation → Euler stepping →
 //!   displacement transfer; clouds and scenes load through the asset server; the `render`
-//!   feature draws it as lit surfels.
+//!   feature draws it as lit surfels, and the `rapier` feature lets bevy_rapier3d bodies
+//!   and surfaces push each other.
 //!
 //! Cargo features: `plugin` (default, headless Bevy), `render` (Bevy's renderer), `egui`
 //! (a bevy_egui panel), `rapier` (bevy_rapier3d contacts), `cli` (the `point-springs` tool).
@@ -37,8 +38,9 @@
 
 pub mod core;
 
-/// The README's code, compiled as doc tests (its game example needs the renderer).
-#[cfg(all(doctest, feature = "render"))]
+/// The README's code, compiled as doc tests (its game example needs the renderer, its
+/// contact example rapier).
+#[cfg(all(doctest, feature = "render", feature = "rapier"))]
 #[doc = include_str!("../README.md")]
 pub struct ReadmeDoctests;
 
@@ -63,6 +65,10 @@ pub mod prelude {
     pub use crate::core::transfer::{NormalUpdate, Transfer, TransferConfig, TransferError};
     pub use crate::core::{Aabb, PointCloud};
 
+    #[cfg(feature = "rapier")]
+    pub use crate::plugin::contact::{
+        ContactDiagnostics, SurfaceContact, SurfaceContactPlugin, SurfaceContacts,
+    };
     #[cfg(feature = "render")]
     pub use crate::plugin::pick::{PointerGrabSettings, PointerGrabs, SurfacePickingPlugin};
     #[cfg(feature = "render")]

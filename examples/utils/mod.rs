@@ -348,6 +348,21 @@ fn screenshot_and_exit(
         && surfaces
             .iter()
             .all(|(s, _)| matches!(s, SurfaceStatus::Ready | SurfaceStatus::Failed(_)));
+    if prepared && frames.0.is_none() {
+        let failed: Vec<&str> = surfaces
+            .iter()
+            .filter_map(|(s, _)| match s {
+                SurfaceStatus::Failed(why) => Some(why.as_str()),
+                _ => None,
+            })
+            .collect();
+        if !failed.is_empty() {
+            // A scripted run checks the example; a surface that did not load fails it.
+            error!("a surface failed: {}", failed.join("; "));
+            exit.write(AppExit::error());
+            return;
+        }
+    }
     let frame = match (&mut frames.0, prepared) {
         (Some(n), _) => {
             *n += 1;

@@ -7,10 +7,12 @@
 //! stability) → [`transfer`] (§5: precomputed least-squares coefficients, normals from
 //! the fitted gradient; [`resample`] fills stretched regions).
 //! [`scene`] describes a whole deformation in a RON file and runs it headless.
+//! [`contact`] turns rigid bodies touching simulation points into impulses both ways.
 //! [`shapes`] builds procedural test surfaces (sphere, hat, sheets); [`surfels`] the disc
 //! geometry the renderer draws.
 
 pub mod cloud;
+pub mod contact;
 pub mod denoise;
 pub mod io;
 pub mod knn;

@@ -31,6 +31,8 @@
 
 pub mod assets;
 pub mod components;
+#[cfg(feature = "rapier")]
+pub mod contact;
 pub mod grab;
 #[cfg(feature = "render")]
 pub mod pick;
@@ -48,6 +50,8 @@ pub use components::{
     SurfaceAnchors, SurfaceForces, SurfaceMasses, SurfaceMaterial, SurfaceNetwork, SurfacePressure,
     SurfaceSettings, SurfaceSource, SurfaceSprings, SurfaceStatus, SurfaceStepper, TransferTiming,
 };
+#[cfg(feature = "rapier")]
+pub use contact::{ContactDiagnostics, SurfaceContact, SurfaceContactPlugin, SurfaceContacts};
 pub use grab::{GrabMessage, GrabSettings, Grabs};
 pub use prepare::PreparationPool;
 

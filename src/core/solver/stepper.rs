@@ -146,6 +146,13 @@ impl Stepper {
         Ok(())
     }
 
+    /// The surface's own force on point `i` (springs, gravity, drag, anchors, pressure) at
+    /// the state of the last [`Stepper::accumulate_forces`], if it has run since the last
+    /// step.
+    pub fn own_force(&self, i: usize) -> Option<Vec3> {
+        (self.forces_ready && i < self.fa.len()).then(|| self.fa.get(i) + self.fb.get(i))
+    }
+
     fn compute_internal(&mut self, points: &PointState, model: Model<'_>) {
         let g = self.config.gravity;
         let mu = self.config.drag;

@@ -1,0 +1,235 @@
+//! What contacts between rapier bodies and surfaces cost per tick, headless, in three scenes:
+//!
+//! * `playground`: the `playground` example's sphere (338 simulation points) and hat (300)
+//!   with 12 balls resting on them and on the floor;
+//! * `sheet+50`: a 10 m sheet of 10^4 simulation points, edges held, 50 balls resting on it;
+//! * `sheet+far`: the same sheet with the 50 balls 100 m away (near no surface).
+//!
+//! Each scene settles for [`SETTLE_TICKS`], then [`MEASURED_TICKS`] ticks are timed: the
+//! contact system alone (its own clock, [`ContactDiagnostics`]) and the whole tick
+//! (`App::update`: contacts, rapier, springs, transfer). Medians over ticks; compare the two
+//! columns of one run, not runs on different machines.
+//!
+//! `cargo bench --features rapier --bench contact`
+
+use std::path::Path;
+use std::time::{Duration, Instant};
+
+use bevy::prelude::*;
+use bevy::time::TimeUpdateStrategy;
+use bevy_point_springs::core::io::read_cloud;
+use bevy_point_springs::core::pipeline::SurfaceConfig;
+use bevy_point_springs::core::shapes;
+use bevy_point_springs::core::simplify::SimplifyConfig;
+use bevy_point_springs::prelude::*;
+use bevy_rapier3d::prelude::*;
+
+/// The tick: 60 Hz.
+const TICK: Duration = Duration::from_micros(16_667);
+
+/// Ticks before timing: the balls fall and come to rest.
+const SETTLE_TICKS: usize = 240;
+
+/// Ticks timed.
+const MEASURED_TICKS: usize = 240;
+
+/// Radius of the sheet scenes' balls, metres.
+const SHEET_BALL_RADIUS: f32 = 0.3;
+
+fn main() {
+    println!(
+        "| scene | simulation points | balls | colliders | points touching | contacts µs/tick | whole tick µs | contacts share |"
+    );
+    println!("|---|---|---|---|---|---|---|---|");
+    playground();
+    sheet(false);
+    sheet(true);
+}
+
+fn create_app() -> App {
+    let mut app = App::new();
+    app.add_plugins((
+        MinimalPlugins,
+        TransformPlugin,
+        PointSpringsPlugin::default(),
+        RapierPhysicsPlugin::<NoUserData>::default().in_fixed_schedule(),
+        SurfaceContactPlugin::default(),
+    ))
+    .insert_resource(TimeUpdateStrategy::ManualDuration(TICK))
+    .insert_resource(Time::<Fixed>::from_duration(TICK));
+    app.finish();
+    app.cleanup();
+    app.update();
+    app
+}
+
+fn ball(at: Vec3, radius: f32) -> impl Bundle {
+    (
+        RigidBody::Dynamic,
+        Collider::ball(radius),
+        ColliderMassProperties::Density(20.0),
+        Transform::from_translation(at),
+    )
+}
+
+/// Updates until every surface is ready.
+fn settle(app: &mut App) {
+    let deadline = Instant::now() + Duration::from_secs(600);
+    loop {
+        let mut statuses = app.world_mut().query::<&SurfaceStatus>();
+        let all: Vec<SurfaceStatus> = statuses.iter(app.world()).cloned().collect();
+        if let Some(failed) = all.iter().find(|s| matches!(s, SurfaceStatus::Failed(_))) {
+            panic!("{failed:?}");
+        }
+        if all.iter().all(SurfaceStatus::is_ready) {
+            return;
+        }
+        assert!(Instant::now() < deadline, "surfaces not ready");
+        app.update();
+        std::thread::sleep(Duration::from_millis(1));
+    }
+}
+
+/// Pins the points whose rest position `held` picks, where they are, at rest (a pinned
+/// point keeps the velocity it has).
+fn pin(app: &mut App, surface: Entity, held: impl Fn(Vec3) -> bool) {
+    let network = app.world().get::<SurfaceNetwork>(surface).unwrap();
+    let picked: Vec<usize> = (0..network.len())
+        .filter(|&i| held(network.positions[i]))
+        .collect();
+    let mut masses = app.world_mut().get_mut::<SurfaceMasses>(surface).unwrap();
+    for &i in &picked {
+        masses.set_pinned(i, true).unwrap();
+    }
+    let mut points = app
+        .world_mut()
+        .get_mut::<SimulationPoints>(surface)
+        .unwrap();
+    for &i in &picked {
+        points.set_velocity(i, Vec3::ZERO).unwrap();
+    }
+}
+
+/// Settles, times, prints one row.
+fn measure(app: &mut App, scene: &str, balls: usize) {
+    for _ in 0..SETTLE_TICKS {
+        app.update();
+    }
+    let mut contacts = Vec::with_capacity(MEASURED_TICKS);
+    let mut whole = Vec::with_capacity(MEASURED_TICKS);
+    let mut touching = 0;
+    let mut colliders = 0;
+    for _ in 0..MEASURED_TICKS {
+        let start = Instant::now();
+        app.update();
+        whole.push(start.elapsed());
+        let d = *app.world().resource::<ContactDiagnostics>();
+        contacts.push(d.time);
+        touching += d.touching;
+        colliders = d.colliders;
+    }
+    let mut points = app.world_mut().query::<&SimulationPoints>();
+    let points: usize = points.iter(app.world()).map(|p| p.len()).sum();
+    let (c, w) = (median(&mut contacts), median(&mut whole));
+    println!(
+        "| {scene} | {points} | {balls} | {colliders} | {} | {:.0} | {:.0} | {:.1} % |",
+        touching / MEASURED_TICKS,
+        c.as_secs_f64() * 1e6,
+        w.as_secs_f64() * 1e6,
+        100.0 * c.as_secs_f64() / w.as_secs_f64()
+    );
+}
+
+fn median(times: &mut [Duration]) -> Duration {
+    times.sort();
+    times[times.len() / 2]
+}
+
+fn playground() {
+    let mut app = create_app();
+    let assets = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets");
+    let sphere = read_cloud(&assets.join("sphere3203.ply"), None).unwrap();
+    let hat = read_cloud(&assets.join("hat3000.ply"), None).unwrap();
+    let solver = SolverConfig {
+        integrator: Integrator::ImplicitEuler,
+        drag: 2.0,
+        ..default()
+    };
+    let sphere_config = SurfaceConfig {
+        simplify: SimplifyConfig::target(338),
+        material: SpringMaterial {
+            stretch_stiffness: 60.0,
+            bend_stiffness: 60.0,
+            stretch_damping: 0.6,
+            bend_damping: 0.3,
+            ..default()
+        },
+        pressure: Some(1000.0),
+        solver,
+        ..default()
+    };
+    let hat_config = SurfaceConfig {
+        simplify: SimplifyConfig::target(300),
+        solver,
+        ..default()
+    };
+    let (sphere_at, hat_at) = (Vec3::new(-1.3, 1.0, 0.0), Vec3::new(1.3, 1.0, 0.0));
+    app.world_mut().spawn((
+        DeformableSurface::cloud(sphere, sphere_config),
+        Transform::from_translation(sphere_at),
+    ));
+    let hat = app
+        .world_mut()
+        .spawn((
+            DeformableSurface::cloud(hat, hat_config),
+            Transform::from_translation(hat_at),
+        ))
+        .id();
+    app.world_mut().spawn((
+        Collider::cuboid(5.0, 0.1, 5.0),
+        Transform::from_xyz(0.0, -0.1, 0.0),
+    ));
+    settle(&mut app);
+    pin(&mut app, hat, |p| p.y >= -0.3);
+    // Twelve balls: four on the sphere, four in the hat, four on the floor.
+    for (i, x) in [-1.3, 1.3, 3.0].into_iter().enumerate() {
+        for k in 0..4 {
+            let a = k as f32 * std::f32::consts::FRAC_PI_2 + i as f32;
+            let at = Vec3::new(x + 0.2 * a.cos(), 2.5 + 0.4 * k as f32, 0.2 * a.sin());
+            app.world_mut().spawn(ball(at, 0.16));
+        }
+    }
+    measure(&mut app, "playground", 12);
+}
+
+fn sheet(far: bool) {
+    let mut app = create_app();
+    // 10 m square, 4·10^4 dense points, 10^4 simulation points (about 0.1 apart), lying
+    // flat (the sheet's +z normal turned to +y), edges held.
+    let config = SurfaceConfig {
+        simplify: SimplifyConfig::target(10_000),
+        solver: SolverConfig {
+            integrator: Integrator::ImplicitEuler,
+            drag: 2.0,
+            ..default()
+        },
+        ..default()
+    };
+    let sheet = app
+        .world_mut()
+        .spawn((
+            DeformableSurface::cloud(shapes::square_sheet(10.0, 0.05), config),
+            Transform::from_rotation(Quat::from_rotation_x(-std::f32::consts::FRAC_PI_2)),
+        ))
+        .id();
+    settle(&mut app);
+    pin(&mut app, sheet, |p| p.x.abs().max(p.y.abs()) > 4.9);
+    let shift = if far { Vec3::X * 100.0 } else { Vec3::ZERO };
+    for i in 0..10 {
+        for k in 0..5 {
+            let at = Vec3::new(-4.0 + 0.9 * i as f32, 0.5, -3.6 + 1.8 * k as f32);
+            app.world_mut().spawn(ball(at + shift, SHEET_BALL_RADIUS));
+        }
+    }
+    measure(&mut app, if far { "sheet+far" } else { "sheet+50" }, 50);
+}

@@ -1,0 +1,218 @@
+//! Rigid bodies and deformable surfaces touching: a sphere and the hat on a floor, balls
+//! dropped on them every second and a half, and the mouse to poke and drag.
+//!
+//! ```sh
+//! cargo run --release --features render,rapier --example playground
+//! cargo run --release --features render,rapier --example playground -- --screenshot play.png --frames 240
+//! ```
+//!
+//! The sphere (3203 points, 338 simulation points, gas inside) sits on the floor under
+//! gravity; the hat's cloud (the cap of a sphere, 300 simulation points) is held by its rim
+//! in a ring above the floor. Both are [`DeformableSurface`]s; the floor and the balls are bevy_rapier3d bodies.
+//! [`SurfaceContactPlugin`] makes every simulation point a small sphere that rapier's
+//! colliders push, and pushes them back. Left-drag pokes and pulls a surface, right-drag
+//! orbits, the wheel zooms, G shows the simulation points and springs, Space pauses.
+
+mod utils;
+
+use bevy::prelude::*;
+use bevy_point_springs::core::pipeline::SurfaceConfig;
+use bevy_point_springs::core::simplify::SimplifyConfig;
+use bevy_point_springs::prelude::*;
+use bevy_rapier3d::prelude::*;
+use utils::{DemoArgs, DemoPlugin, prop_material, spawn_camera_and_light};
+
+/// Ticks between two balls (1.5 s at 60 Hz).
+const BALL_INTERVAL: u32 = 90;
+
+/// Balls kept at once; the oldest goes when another comes.
+const MAX_BALLS: usize = 12;
+
+/// Radius of a ball, metres.
+const BALL_RADIUS: f32 = 0.16;
+
+/// Density of a ball (kg/m³): 0.7 kg, about forty of the hat's simulation points.
+const BALL_DENSITY: f32 = 40.0;
+
+/// Mass per unit area of the sphere.
+const SPHERE_DENSITY: f32 = 1.0;
+
+/// Height the balls are dropped from.
+const DROP_HEIGHT: f32 = 2.6;
+
+/// Where the sphere and the hat stand.
+const SPHERE_AT: Vec3 = Vec3::new(-1.3, 1.0, 0.0);
+const HAT_AT: Vec3 = Vec3::new(1.3, 1.6, 0.0);
+
+/// The hat's simulation points at or above this height (in its own coordinates) are held
+/// by the ring.
+const HAT_RIM: f32 = -0.3;
+
+fn main() -> AppExit {
+    App::new()
+        .add_plugins((
+            DemoPlugin {
+                title: "bevy_point_springs — playground",
+                args: DemoArgs::from_env(),
+            },
+            RapierPhysicsPlugin::<NoUserData>::default().in_fixed_schedule(),
+            SurfaceContactPlugin::default(),
+        ))
+        .add_systems(Startup, setup)
+        .add_systems(Update, hold_the_hat_rim)
+        .add_systems(FixedUpdate, drop_balls)
+        .run()
+}
+
+/// Marks the hat.
+#[derive(Component)]
+struct Hat;
+
+/// Marks a ball, with the tick it was dropped at.
+#[derive(Component)]
+struct Ball(u32);
+
+/// The ball's mesh and material, made once.
+#[derive(Resource)]
+struct BallLook {
+    mesh: Handle<Mesh>,
+    material: Handle<StandardMaterial>,
+}
+
+fn setup(
+    mut commands: Commands,
+    assets: Res<AssetServer>,
+    mut meshes: ResMut<Assets<Mesh>>,
+    mut materials: ResMut<Assets<StandardMaterial>>,
+) {
+    let sphere = SurfaceConfig {
+        simplify: SimplifyConfig::target(338),
+        material: SpringMaterial {
+            stretch_stiffness: 60.0,
+            bend_stiffness: 60.0,
+            stretch_damping: 0.6,
+            bend_damping: 0.3,
+            density: SPHERE_DENSITY,
+        },
+        pressure: Some(1000.0),
+        solver: SolverConfig {
+            integrator: Integrator::ImplicitEuler,
+            drag: 2.0,
+            ..default()
+        },
+        ..default()
+    };
+    commands.spawn((
+        DeformableSurface::cloud_asset(assets.load("sphere3203.ply"), sphere),
+        SurfelRender::default(),
+        Transform::from_translation(SPHERE_AT),
+    ));
+    let hat = SurfaceConfig {
+        simplify: SimplifyConfig::target(300),
+        solver: SolverConfig {
+            integrator: Integrator::ImplicitEuler,
+            drag: 2.0,
+            ..default()
+        },
+        ..default()
+    };
+    commands.spawn((
+        Hat,
+        DeformableSurface::cloud_asset(assets.load("hat3000.ply"), hat),
+        SurfelRender {
+            color: Color::srgb(0.55, 0.42, 0.75),
+            ..default()
+        },
+        Transform::from_translation(HAT_AT),
+    ));
+    // The ring that holds the hat's rim.
+    commands.spawn((
+        Mesh3d(meshes.add(Torus::new(0.93, 1.03))),
+        MeshMaterial3d(materials.add(prop_material())),
+        Transform::from_translation(HAT_AT + Vec3::Y * -0.22),
+    ));
+    // The floor: a rapier collider and its slab.
+    commands.spawn((
+        Collider::cuboid(5.0, 0.1, 5.0),
+        Mesh3d(meshes.add(Cuboid::new(10.0, 0.2, 10.0))),
+        MeshMaterial3d(materials.add(StandardMaterial {
+            base_color: Color::srgb(0.24, 0.26, 0.3),
+            perceptual_roughness: 0.9,
+            ..default()
+        })),
+        Transform::from_xyz(0.0, -0.1, 0.0),
+    ));
+    commands.insert_resource(BallLook {
+        mesh: meshes.add(Sphere::new(BALL_RADIUS)),
+        material: materials.add(StandardMaterial {
+            base_color: Color::srgb(0.85, 0.2, 0.2),
+            perceptual_roughness: 0.4,
+            ..default()
+        }),
+    });
+    spawn_camera_and_light(&mut commands, Vec3::new(0.0, 0.8, 0.0), 6.0, 0.0, 0.6);
+}
+
+/// Hats whose network is new (just prepared).
+type NewHats = (With<Hat>, Changed<SurfaceNetwork>);
+
+/// Pins the hat's rim once it is prepared (and again when it is prepared anew), at rest
+/// where it is (a pinned point keeps the velocity it has).
+fn hold_the_hat_rim(
+    mut hats: Query<(&SurfaceNetwork, &mut SurfaceMasses, &mut SimulationPoints), NewHats>,
+) {
+    for (network, mut masses, mut points) in &mut hats {
+        for (i, p) in network.positions.iter().enumerate() {
+            if p.y >= HAT_RIM {
+                // In range: the masses, the points and the network have the same points.
+                let _ = masses.set_pinned(i, true);
+                let _ = points.set_velocity(i, Vec3::ZERO);
+            }
+        }
+    }
+}
+
+/// Every [`BALL_INTERVAL`] ticks while the surfaces run, a ball over the sphere or the hat
+/// in turn, a little off their middle; the oldest goes when there are too many.
+fn drop_balls(
+    mut commands: Commands,
+    look: Res<BallLook>,
+    surfaces: Query<(&SurfaceStatus, &SurfaceSettings)>,
+    balls: Query<(Entity, &Ball)>,
+    mut tick: Local<u32>,
+) {
+    let running = !surfaces.is_empty()
+        && surfaces
+            .iter()
+            .all(|(status, settings)| status.is_ready() && !settings.paused);
+    if !running {
+        return;
+    }
+    *tick += 1;
+    if *tick % BALL_INTERVAL != 1 {
+        return;
+    }
+    let n = *tick / BALL_INTERVAL;
+    let over = if n.is_multiple_of(2) {
+        HAT_AT
+    } else {
+        SPHERE_AT
+    };
+    // A small walk around the middle, the same on every run.
+    let angle = n as f32 * 2.4;
+    let offset = Vec3::new(angle.cos(), 0.0, angle.sin()) * 0.12 * (n % 3) as f32;
+    commands.spawn((
+        Ball(*tick),
+        RigidBody::Dynamic,
+        Collider::ball(BALL_RADIUS),
+        ColliderMassProperties::Density(BALL_DENSITY),
+        Mesh3d(look.mesh.clone()),
+        MeshMaterial3d(look.material.clone()),
+        Transform::from_translation(Vec3::new(over.x, DROP_HEIGHT, over.z) + offset),
+    ));
+    let mut all: Vec<(Entity, u32)> = balls.iter().map(|(e, b)| (e, b.0)).collect();
+    if all.len() >= MAX_BALLS {
+        all.sort_by_key(|&(_, t)| t);
+        commands.entity(all[0].0).despawn();
+    }
+}

@@ -1,0 +1,344 @@
+//! Rapier bodies touching surfaces, headless: `MinimalPlugins` + `TransformPlugin` +
+//! `PointSpringsPlugin` + rapier in the fixed schedule + `SurfaceContactPlugin`, with
+//! `TimeUpdateStrategy::ManualDuration` so that one `update()` is one fixed tick.
+#![cfg(feature = "rapier")]
+
+use std::time::{Duration, Instant};
+
+use bevy::prelude::*;
+use bevy::time::TimeUpdateStrategy;
+use bevy_point_springs::core::pipeline::SurfaceConfig;
+use bevy_point_springs::core::shapes;
+use bevy_point_springs::core::simplify::SimplifyConfig;
+use bevy_point_springs::prelude::*;
+use bevy_rapier3d::prelude::*;
+
+/// The tick: 60 Hz, a game's default.
+const TICK: Duration = Duration::from_micros(16_667);
+
+/// Upper bound on waiting for preparation (a hang guard, not a speed check).
+const SETTLE_TIMEOUT: Duration = Duration::from_secs(120);
+
+/// Simulation points at or above this height on the hat are pinned (its rim).
+const HAT_RIM: f32 = -0.3;
+
+fn create_app(gravity: Vec3) -> App {
+    let mut app = App::new();
+    app.add_plugins((
+        MinimalPlugins,
+        TransformPlugin,
+        PointSpringsPlugin::default(),
+        RapierPhysicsPlugin::<NoUserData>::default().in_fixed_schedule(),
+        SurfaceContactPlugin::default(),
+    ))
+    .insert_resource(TimeUpdateStrategy::ManualDuration(TICK))
+    .insert_resource(Time::<Fixed>::from_duration(TICK));
+    app.finish();
+    app.cleanup();
+    app.update();
+    let mut config = app
+        .world_mut()
+        .query::<&mut RapierConfiguration>()
+        .single_mut(app.world_mut())
+        .unwrap();
+    config.gravity = gravity;
+    app
+}
+
+/// The paper's hat cloud (the cap of a unit sphere below y = -0.2, a bowl open upwards)
+/// at 300 simulation points, without gravity of its own, rim pinned once prepared.
+fn spawn_hat(app: &mut App, extra: impl Bundle) -> Entity {
+    let config = SurfaceConfig {
+        simplify: SimplifyConfig::target(300),
+        solver: SolverConfig {
+            gravity: Vec3::ZERO,
+            drag: 1.0,
+            ..default()
+        },
+        ..default()
+    };
+    let hat = app
+        .world_mut()
+        .spawn((
+            DeformableSurface::cloud(shapes::hat(3000, 1.0, -0.2), config),
+            extra,
+        ))
+        .id();
+    settle(app, hat);
+    pin(app, hat, |p| p.y >= HAT_RIM);
+    hat
+}
+
+/// Pins the points whose rest position `held` picks, where they are, at rest (a pinned
+/// point keeps the velocity it has: it would drift).
+fn pin(app: &mut App, surface: Entity, held: impl Fn(Vec3) -> bool) {
+    let network = app.world().get::<SurfaceNetwork>(surface).unwrap();
+    let picked: Vec<usize> = (0..network.len())
+        .filter(|&i| held(network.positions[i]))
+        .collect();
+    let mut masses = app.world_mut().get_mut::<SurfaceMasses>(surface).unwrap();
+    for &i in &picked {
+        masses.set_pinned(i, true).unwrap();
+    }
+    let mut points = app
+        .world_mut()
+        .get_mut::<SimulationPoints>(surface)
+        .unwrap();
+    for &i in &picked {
+        points.set_velocity(i, Vec3::ZERO).unwrap();
+    }
+}
+
+fn settle(app: &mut App, surface: Entity) {
+    let deadline = Instant::now() + SETTLE_TIMEOUT;
+    while !app
+        .world()
+        .get::<SurfaceStatus>(surface)
+        .unwrap()
+        .is_ready()
+    {
+        assert!(Instant::now() < deadline, "the surface did not get ready");
+        assert!(
+            !matches!(
+                app.world().get::<SurfaceStatus>(surface),
+                Some(SurfaceStatus::Failed(_))
+            ),
+            "{:?}",
+            app.world().get::<SurfaceStatus>(surface)
+        );
+        app.update();
+        std::thread::sleep(Duration::from_millis(1));
+    }
+}
+
+/// A dynamic ball of `radius` and `density`, never sleeping.
+fn ball(at: Vec3, radius: f32, density: f32, velocity: Vec3) -> impl Bundle {
+    (
+        RigidBody::Dynamic,
+        Collider::ball(radius),
+        ColliderMassProperties::Density(density),
+        Velocity::linear(velocity),
+        ReadMassProperties::default(),
+        Sleeping::disabled(),
+        Transform::from_translation(at),
+    )
+}
+
+fn translation(app: &App, e: Entity) -> Vec3 {
+    app.world().get::<Transform>(e).unwrap().translation
+}
+
+fn velocity(app: &App, e: Entity) -> Vec3 {
+    app.world().get::<Velocity>(e).unwrap().linear
+}
+
+fn lowest(app: &App, surface: Entity) -> f32 {
+    let points = app.world().get::<SimulationPoints>(surface).unwrap();
+    points
+        .iter_positions()
+        .map(|p| p.y)
+        .fold(f32::MAX, f32::min)
+}
+
+#[test]
+fn a_ball_dropped_on_the_hat_slows_dents_it_and_both_take_the_same_impulse() {
+    let g = Vec3::new(0.0, -9.81, 0.0);
+    let mut app = create_app(g);
+    let hat = spawn_hat(&mut app, ());
+    let bottom_at_rest = lowest(&app, hat);
+    // A 0.15 m ball of 0.28 kg, dropped from 2 m above the bowl's bottom: it lands at
+    // 6 m/s.
+    let ball = app
+        .world_mut()
+        .spawn(ball(Vec3::new(0.0, 1.0, 0.0), 0.15, 20.0, Vec3::ZERO))
+        .id();
+    app.update();
+    let mass = app.world().get::<ReadMassProperties>(ball).unwrap().mass;
+    assert!((0.25..0.3).contains(&mass), "{mass}");
+    let momentum_before = velocity(&app, ball) * mass;
+    let (mut fastest, mut deepest, mut lowest_ball) = (0.0_f32, 0.0_f32, f32::MAX);
+    let ticks = 120;
+    for _ in 0..ticks {
+        app.update();
+        fastest = fastest.max(-velocity(&app, ball).y);
+        deepest = deepest.max(bottom_at_rest - lowest(&app, hat));
+        lowest_ball = lowest_ball.min(translation(&app, ball).y);
+    }
+    let end_speed = velocity(&app, ball).length();
+    println!(
+        "ball {mass:.2} kg: fastest {fastest:.3} m/s, end {end_speed:.3} m/s, lowest centre \
+         {lowest_ball:.3}; deepest dent {deepest:.3}"
+    );
+    // Free fall over 1.8 m reaches 5.9 m/s: it was caught and slowed to a near stop.
+    assert!(fastest > 5.0, "it fell: {fastest}");
+    assert!(
+        end_speed < 0.3 * fastest,
+        "it slowed: {end_speed} of {fastest}"
+    );
+    assert!(deepest > 0.02, "the bottom dented: {deepest}");
+    assert!(
+        lowest_ball > bottom_at_rest - deepest - 0.05,
+        "above the surface"
+    );
+    // Momentum: what the ball gained beyond gravity's impulse is what the surface lost.
+    let elapsed = ticks as f32 * TICK.as_secs_f32();
+    let on_ball = velocity(&app, ball) * mass - momentum_before - g * mass * elapsed;
+    let contacts = app.world().get::<SurfaceContacts>(hat).unwrap();
+    let on_surface = contacts.total_impulse;
+    println!("impulse on the ball {on_ball}, on the surface {on_surface}");
+    assert!(
+        on_ball.y > 0.5 * mass * fastest,
+        "the surface held the ball: {on_ball}"
+    );
+    let mismatch = (on_ball + on_surface).length() / on_ball.length();
+    assert!(
+        mismatch < 0.01,
+        "impulses differ by {:.3}%",
+        100.0 * mismatch
+    );
+    // Rapier steps the same time as the surfaces.
+    let mode = *app.world().resource::<TimestepMode>();
+    assert!(
+        matches!(mode, TimestepMode::Fixed { dt, .. } if (dt - TICK.as_secs_f32()).abs() < 1e-7),
+        "{mode:?}"
+    );
+}
+
+#[test]
+fn a_ball_at_20_m_per_s_does_not_pass_a_sheet_one_spacing_thick() {
+    let mut app = create_app(Vec3::ZERO);
+    // A 2 m square in the XY plane, simulation points about 0.1 apart, edges pinned.
+    let config = SurfaceConfig {
+        simplify: SimplifyConfig::target(400),
+        solver: SolverConfig {
+            gravity: Vec3::ZERO,
+            ..default()
+        },
+        ..default()
+    };
+    let sheet = app
+        .world_mut()
+        .spawn(DeformableSurface::cloud(
+            shapes::square_sheet(2.0, 0.03),
+            config,
+        ))
+        .id();
+    settle(&mut app, sheet);
+    pin(&mut app, sheet, |p| p.x.abs().max(p.y.abs()) > 0.9);
+    let spacing = 2.0
+        * app.world().get::<SurfaceContacts>(sheet).map_or(0.05, |c| {
+            c.radii().iter().sum::<f32>() / c.radii().len() as f32
+        });
+    // A 5 cm ball at 20 m/s along -z: a third of a metre per tick, three times the
+    // sheet's thickness. From half a metre in front, its centre is 0.167 in front at the
+    // start of one tick and 0.167 behind at the next: a test of where things are at the
+    // start of each tick never finds it touching (the ball's and a point's radii add up to
+    // 0.11).
+    let ball = app
+        .world_mut()
+        .spawn(ball(
+            Vec3::new(0.02, -0.03, 0.5),
+            0.05,
+            20.0,
+            Vec3::new(0.0, 0.0, -20.0),
+        ))
+        .id();
+    let mut deepest_ball = f32::MAX;
+    let mut passed = false;
+    for _ in 0..90 {
+        app.update();
+        let b = translation(&app, ball);
+        deepest_ball = deepest_ball.min(b.z);
+        // The sheet's points under the ball: the ball's centre stays in front of them.
+        let points = app.world().get::<SimulationPoints>(sheet).unwrap();
+        let under: Vec<f32> = points
+            .iter_positions()
+            .filter(|p| (p.truncate() - b.truncate()).length() < 0.1)
+            .map(|p| p.z)
+            .collect();
+        if under.iter().any(|&z| z > b.z) {
+            passed = true;
+        }
+    }
+    let v = velocity(&app, ball);
+    println!("sheet spacing {spacing:.3}; ball deepest at z = {deepest_ball:.3}, end velocity {v}");
+    assert!(spacing < 0.15, "{spacing}");
+    assert!(!passed, "the ball went through the sheet");
+    assert!(v.z > -2.0, "the sheet stopped the ball: {v}");
+    assert!(
+        app.world().get::<SurfaceStatus>(sheet).unwrap().is_ready(),
+        "still simulating"
+    );
+}
+
+#[test]
+fn bodies_the_surface_filters_out_and_sensors_fall_through() {
+    let g = Vec3::new(0.0, -9.81, 0.0);
+    let mut app = create_app(g);
+    let hat = spawn_hat(
+        &mut app,
+        CollisionGroups::new(Group::GROUP_1, Group::GROUP_1),
+    );
+    let rest = app
+        .world()
+        .get::<SimulationPoints>(hat)
+        .unwrap()
+        .positions();
+    let start = Vec3::new(0.0, -0.5, 0.0);
+    let filtered = app
+        .world_mut()
+        .spawn((
+            ball(start + Vec3::X * 0.3, 0.1, 1000.0, Vec3::ZERO),
+            CollisionGroups::new(Group::GROUP_2, Group::ALL),
+        ))
+        .id();
+    let sensor = app
+        .world_mut()
+        .spawn((ball(start - Vec3::X * 0.3, 0.1, 1000.0, Vec3::ZERO), Sensor))
+        .id();
+    // Far from the hat: near no surface.
+    app.world_mut()
+        .spawn(ball(Vec3::new(10.0, 0.0, 0.0), 0.1, 1000.0, Vec3::ZERO));
+    let ticks = 40;
+    for _ in 0..ticks {
+        app.update();
+        let near = app
+            .world()
+            .get::<SurfaceContacts>(hat)
+            .unwrap()
+            .colliders_near;
+        assert_eq!(near, 0, "no collider the surface touches is near it");
+    }
+    let free_fall = g * ticks as f32 * TICK.as_secs_f32();
+    for e in [filtered, sensor] {
+        let v = velocity(&app, e);
+        assert!((v - free_fall).length() < 1e-3, "{v} vs {free_fall}");
+        assert!(translation(&app, e).y < -1.3, "below the hat's bottom");
+    }
+    let contacts = app.world().get::<SurfaceContacts>(hat).unwrap();
+    assert_eq!(contacts.total_impulse, Vec3::ZERO);
+    let now = app
+        .world()
+        .get::<SimulationPoints>(hat)
+        .unwrap()
+        .positions();
+    let moved = rest
+        .iter()
+        .zip(&now)
+        .map(|(a, b)| a.distance(*b))
+        .fold(0.0, f32::max);
+    assert!(moved < 1e-4, "the hat was untouched: {moved}");
+
+    // The same ball in the surface's group is caught.
+    let caught = app
+        .world_mut()
+        .spawn((
+            ball(start, 0.1, 20.0, Vec3::ZERO),
+            CollisionGroups::new(Group::GROUP_1, Group::ALL),
+        ))
+        .id();
+    for _ in 0..ticks {
+        app.update();
+    }
+    assert!(translation(&app, caught).y > -1.2, "caught by the hat");
+}
