@@ -342,3 +342,52 @@ fn bodies_the_surface_filters_out_and_sensors_fall_through() {
     }
     assert!(translation(&app, caught).y > -1.2, "caught by the hat");
 }
+
+#[test]
+fn a_kinematic_paddle_pushes_the_surface_and_is_not_pushed_back() {
+    let mut app = create_app(Vec3::ZERO);
+    let hat = spawn_hat(&mut app, ());
+    let bottom_at_rest = lowest(&app, hat);
+    // A 0.4 m square paddle, its face 0.2 above the bowl's bottom, driven down at 1 m/s for
+    // half a second: its face ends 0.3 below where the bottom was.
+    let speed = Vec3::new(0.0, -1.0, 0.0);
+    let paddle = app
+        .world_mut()
+        .spawn((
+            RigidBody::KinematicVelocityBased,
+            Collider::cuboid(0.2, 0.05, 0.2),
+            Velocity::linear(speed),
+            Transform::from_xyz(0.0, -0.75, 0.0),
+        ))
+        .id();
+    for _ in 0..30 {
+        app.update();
+    }
+    let centre = translation(&app, paddle);
+    let face = centre.y - 0.05;
+    let points = app.world().get::<SimulationPoints>(hat).unwrap();
+    let under: Vec<Vec3> = points
+        .iter_positions()
+        .filter(|p| (p.x - centre.x).abs() < 0.15 && (p.z - centre.z).abs() < 0.15)
+        .collect();
+    let pushed = bottom_at_rest - lowest(&app, hat);
+    println!(
+        "paddle face at {face:.3}; the bottom went down {pushed:.3}; {} points under the paddle",
+        under.len()
+    );
+    assert!(
+        (face - (-1.3)).abs() < 0.02,
+        "the paddle kept its course: {face}"
+    );
+    assert!(
+        (velocity(&app, paddle) - speed).length() < 1e-5,
+        "the paddle keeps its speed"
+    );
+    assert!(!under.is_empty());
+    assert!(
+        under.iter().all(|p| p.y < face),
+        "every point under the paddle is still below its face"
+    );
+    let contacts = app.world().get::<SurfaceContacts>(hat).unwrap();
+    assert!(contacts.total_impulse.y < 0.0, "{}", contacts.total_impulse);
+}
