@@ -21,6 +21,7 @@ use bevy_point_springs::core::io::read_cloud;
 use bevy_point_springs::core::pipeline::SurfaceConfig;
 use bevy_point_springs::core::shapes;
 use bevy_point_springs::core::simplify::SimplifyConfig;
+use bevy_point_springs::core::solver::hold_still;
 use bevy_point_springs::prelude::*;
 use bevy_rapier3d::prelude::*;
 
@@ -90,24 +91,21 @@ fn settle(app: &mut App) {
     }
 }
 
-/// Pins the points whose rest position `held` picks, where they are, at rest (a pinned
-/// point keeps the velocity it has).
+/// Pins, where they are and at rest ([`hold_still`]), the points whose rest position `held`
+/// picks.
 fn pin(app: &mut App, surface: Entity, held: impl Fn(Vec3) -> bool) {
-    let network = app.world().get::<SurfaceNetwork>(surface).unwrap();
-    let picked: Vec<usize> = (0..network.len())
-        .filter(|&i| held(network.positions[i]))
-        .collect();
-    let mut masses = app.world_mut().get_mut::<SurfaceMasses>(surface).unwrap();
-    for &i in &picked {
-        masses.set_pinned(i, true).unwrap();
-    }
-    let mut points = app
-        .world_mut()
-        .get_mut::<SimulationPoints>(surface)
+    let rest = app
+        .world()
+        .get::<SurfaceNetwork>(surface)
+        .unwrap()
+        .0
+        .clone();
+    let world = app.world_mut();
+    let (mut masses, mut points) = world
+        .query::<(&mut SurfaceMasses, &mut SimulationPoints)>()
+        .get_mut(world, surface)
         .unwrap();
-    for &i in &picked {
-        points.set_velocity(i, Vec3::ZERO).unwrap();
-    }
+    hold_still(&mut masses, &mut points, |i| held(rest.positions[i])).unwrap();
 }
 
 /// Settles, times, prints one row.

@@ -18,6 +18,7 @@ mod utils;
 use bevy::prelude::*;
 use bevy_point_springs::core::pipeline::SurfaceConfig;
 use bevy_point_springs::core::simplify::SimplifyConfig;
+use bevy_point_springs::core::solver::hold_still;
 use bevy_point_springs::prelude::*;
 use bevy_rapier3d::prelude::*;
 use utils::{DemoArgs, DemoPlugin, prop_material, spawn_camera_and_light};
@@ -85,6 +86,12 @@ fn setup(
     mut meshes: ResMut<Assets<Mesh>>,
     mut materials: ResMut<Assets<StandardMaterial>>,
 ) {
+    // Both surfaces: implicit Euler at the tick, a little air drag.
+    let solver = SolverConfig {
+        integrator: Integrator::ImplicitEuler,
+        drag: 2.0,
+        ..default()
+    };
     let sphere = SurfaceConfig {
         simplify: SimplifyConfig::target(338),
         material: SpringMaterial {
@@ -95,11 +102,7 @@ fn setup(
             density: SPHERE_DENSITY,
         },
         pressure: Some(1000.0),
-        solver: SolverConfig {
-            integrator: Integrator::ImplicitEuler,
-            drag: 2.0,
-            ..default()
-        },
+        solver,
         ..default()
     };
     commands.spawn((
@@ -109,11 +112,7 @@ fn setup(
     ));
     let hat = SurfaceConfig {
         simplify: SimplifyConfig::target(300),
-        solver: SolverConfig {
-            integrator: Integrator::ImplicitEuler,
-            drag: 2.0,
-            ..default()
-        },
+        solver,
         ..default()
     };
     commands.spawn((
@@ -156,18 +155,15 @@ fn setup(
 /// Hats whose network is new (just prepared).
 type NewHats = (With<Hat>, Changed<SurfaceNetwork>);
 
-/// Pins the hat's rim once it is prepared (and again when it is prepared anew), at rest
-/// where it is (a pinned point keeps the velocity it has).
+/// Pins the hat's rim where it is, at rest, once it is prepared (and again when it is
+/// prepared anew).
 fn hold_the_hat_rim(
     mut hats: Query<(&SurfaceNetwork, &mut SurfaceMasses, &mut SimulationPoints), NewHats>,
 ) {
     for (network, mut masses, mut points) in &mut hats {
-        for (i, p) in network.positions.iter().enumerate() {
-            if p.y >= HAT_RIM {
-                // In range: the masses, the points and the network have the same points.
-                let _ = masses.set_pinned(i, true);
-                let _ = points.set_velocity(i, Vec3::ZERO);
-            }
+        let rim = |i: usize| network.positions[i].y >= HAT_RIM;
+        if let Err(e) = hold_still(&mut masses, &mut points, rim) {
+            error!("the hat's rim is not held: {e}");
         }
     }
 }

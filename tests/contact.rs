@@ -10,6 +10,7 @@ use bevy::time::TimeUpdateStrategy;
 use bevy_point_springs::core::pipeline::SurfaceConfig;
 use bevy_point_springs::core::shapes;
 use bevy_point_springs::core::simplify::SimplifyConfig;
+use bevy_point_springs::core::solver::hold_still;
 use bevy_point_springs::prelude::*;
 use bevy_rapier3d::prelude::*;
 
@@ -69,24 +70,21 @@ fn spawn_hat(app: &mut App, extra: impl Bundle) -> Entity {
     hat
 }
 
-/// Pins the points whose rest position `held` picks, where they are, at rest (a pinned
-/// point keeps the velocity it has: it would drift).
+/// Pins, where they are and at rest ([`hold_still`]), the points whose rest position `held`
+/// picks.
 fn pin(app: &mut App, surface: Entity, held: impl Fn(Vec3) -> bool) {
-    let network = app.world().get::<SurfaceNetwork>(surface).unwrap();
-    let picked: Vec<usize> = (0..network.len())
-        .filter(|&i| held(network.positions[i]))
-        .collect();
-    let mut masses = app.world_mut().get_mut::<SurfaceMasses>(surface).unwrap();
-    for &i in &picked {
-        masses.set_pinned(i, true).unwrap();
-    }
-    let mut points = app
-        .world_mut()
-        .get_mut::<SimulationPoints>(surface)
+    let rest = app
+        .world()
+        .get::<SurfaceNetwork>(surface)
+        .unwrap()
+        .0
+        .clone();
+    let world = app.world_mut();
+    let (mut masses, mut points) = world
+        .query::<(&mut SurfaceMasses, &mut SimulationPoints)>()
+        .get_mut(world, surface)
         .unwrap();
-    for &i in &picked {
-        points.set_velocity(i, Vec3::ZERO).unwrap();
-    }
+    hold_still(&mut masses, &mut points, |i| held(rest.positions[i])).unwrap();
 }
 
 fn settle(app: &mut App, surface: Entity) {
@@ -390,4 +388,39 @@ fn a_kinematic_paddle_pushes_the_surface_and_is_not_pushed_back() {
     );
     let contacts = app.world().get::<SurfaceContacts>(hat).unwrap();
     assert!(contacts.total_impulse.y < 0.0, "{}", contacts.total_impulse);
+}
+
+#[test]
+fn contact_settings_out_of_range_turn_contacts_off_and_the_app_runs_on() {
+    let g = Vec3::new(0.0, -9.81, 0.0);
+    let mut app = create_app(g);
+    let bad = SurfaceContact {
+        friction: -1.0,
+        ..default()
+    };
+    let hat = spawn_hat(&mut app, bad);
+    let dropped = app
+        .world_mut()
+        .spawn(ball(Vec3::new(0.0, -0.5, 0.0), 0.1, 20.0, Vec3::ZERO))
+        .id();
+    for _ in 0..40 {
+        app.update();
+    }
+    assert!(translation(&app, dropped).y < -1.3, "fell through the hat");
+    assert!(app.world().get::<SurfaceStatus>(hat).unwrap().is_ready());
+    let contacts = app.world().get::<SurfaceContacts>(hat).unwrap();
+    assert_eq!(contacts.total_impulse, Vec3::ZERO);
+    // Set right, the next ball is caught.
+    app.world_mut()
+        .get_mut::<SurfaceContact>(hat)
+        .unwrap()
+        .friction = 0.5;
+    let caught = app
+        .world_mut()
+        .spawn(ball(Vec3::new(0.0, -0.5, 0.0), 0.1, 20.0, Vec3::ZERO))
+        .id();
+    for _ in 0..40 {
+        app.update();
+    }
+    assert!(translation(&app, caught).y > -1.2, "caught by the hat");
 }

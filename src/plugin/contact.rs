@@ -237,7 +237,7 @@ pub fn surface_contacts(
         &GlobalTransform,
         &SurfaceStatus,
         &SurfaceSettings,
-        Option<&SurfaceContact>,
+        Option<Ref<SurfaceContact>>,
         Option<&CollisionGroups>,
         Option<&mut SurfaceContacts>,
     )>,
@@ -275,7 +275,9 @@ pub fn surface_contacts(
         if !status.is_ready() || settings.paused {
             continue;
         }
-        let contact = contact.copied().unwrap_or_default();
+        // Settings out of range are said once, when they are set.
+        let newly_set = contact.as_ref().is_some_and(|c| c.is_changed());
+        let contact = contact.map_or_else(SurfaceContact::default, |c| *c);
         let mut inserted = None;
         let report = match report {
             Some(report) => report.into_inner(),
@@ -298,7 +300,9 @@ pub fn surface_contacts(
             let groups = groups.map_or(InteractionGroups::all(), |g| (*g).into());
             let params = contact.params();
             if let Err(e) = params.validate() {
-                error!("point-springs surface {entity}: contacts off: {e}");
+                if newly_set {
+                    error!("point-springs surface {entity}: contacts off: {e}");
+                }
             } else {
                 let touched = touch(
                     &surface,

@@ -83,7 +83,7 @@ use glam::Vec3;
 use crate::core::network::SpringNetwork;
 
 use parts::non_negative;
-pub use parts::{Anchors, ExternalForces, Masses, PointState, Pressure, Springs};
+pub use parts::{Anchors, ExternalForces, Masses, PointState, Pressure, Springs, hold_still};
 pub use springs::{COINCIDENT_DISTANCE, SpringSpec};
 pub use stepper::{Model, Stepper};
 

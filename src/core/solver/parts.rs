@@ -260,6 +260,29 @@ impl Masses {
     }
 }
 
+/// Pins the points `held` picks (by index) where they are and stops them: a pinned point
+/// keeps the velocity it has, so pinning a moving point alone leaves it drifting. Returns
+/// how many were pinned; an index outside either array is refused before anything changes.
+pub fn hold_still(
+    masses: &mut Masses,
+    points: &mut PointState,
+    held: impl Fn(usize) -> bool,
+) -> Result<usize, SolverError> {
+    let n = masses.len();
+    if n > points.len() {
+        return Err(SolverError::PointOutOfRange {
+            index: n - 1,
+            points: points.len(),
+        });
+    }
+    let picked: Vec<usize> = (0..n).filter(|&i| held(i)).collect();
+    for &i in &picked {
+        masses.set_pinned(i, true)?;
+        points.v.set(i, Vec3::ZERO);
+    }
+    Ok(picked.len())
+}
+
 /// The springs (eq 2–3), stored in the order the force kernels want (see the `springs`
 /// module); [`Springs::iter`] gives them back.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -727,5 +750,28 @@ mod tests {
         let inverted: Vec<[u32; 3]> = faces.iter().map(|&[a, b, c]| [a, c, b]).collect();
         let (rest, _) = tetrahedron();
         assert!(Pressure::new(inverted, &rest, 10.0).is_err());
+    }
+
+    #[test]
+    fn hold_still_pins_and_stops_what_it_picks() {
+        let (mut points, _) = tetrahedron();
+        for i in 0..4 {
+            points.set_velocity(i, Vec3::new(0.0, -0.16, 0.0)).unwrap();
+        }
+        let mut masses = Masses::new(&[1.0; 4]).unwrap();
+        assert_eq!(hold_still(&mut masses, &mut points, |i| i < 2).unwrap(), 2);
+        assert!(masses.is_pinned(0) && masses.is_pinned(1) && !masses.is_pinned(2));
+        assert_eq!(points.velocity(1), Vec3::ZERO);
+        assert_eq!(points.velocity(2), Vec3::new(0.0, -0.16, 0.0));
+        // More masses than points: refused, nothing changed.
+        let mut more = Masses::new(&[1.0; 5]).unwrap();
+        assert!(matches!(
+            hold_still(&mut more, &mut points, |_| true),
+            Err(SolverError::PointOutOfRange {
+                index: 4,
+                points: 4
+            })
+        ));
+        assert_eq!(more.pinned(), 0);
     }
 }
