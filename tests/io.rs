@@ -147,6 +147,74 @@ fn real_files_load() {
 }
 
 #[test]
+fn mesh_files_keep_their_faces_as_triangles() {
+    // A unit square as one quad and a triangle on top: the quad becomes a fan of two.
+    let off = "OFF\n5 2 0\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n0.5 1.5 0\n4 0 1 2 3\n3 3 2 4 255 0 0\n";
+    let obj = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0.5 1.5 0\nf 1/1 2/2 3/3 4/4\nf -2 -3 -1\n";
+    let ply = "ply\nformat ascii 1.0\nelement vertex 5\nproperty float x\nproperty float y\n\
+               property float z\nelement face 2\nproperty list uchar int vertex_indices\n\
+               end_header\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n0.5 1.5 0\n4 0 1 2 3\n3 3 2 4\n";
+    let expected = [[0, 1, 2], [0, 2, 3], [3, 2, 4]];
+    for (text, format) in [
+        (off, CloudFormat::Off),
+        (obj, CloudFormat::Obj),
+        (ply, CloudFormat::Ply),
+    ] {
+        let cloud = read_cloud_from_bytes(text.as_bytes(), format, "mesh").unwrap();
+        assert_eq!(cloud.len(), 5, "{format}");
+        assert_eq!(cloud.faces(), &expected, "{format}");
+    }
+    // The same in binary PLY; a polygon naming a point twice keeps only its proper triangles.
+    let mut binary = b"ply\nformat binary_little_endian 1.0\nelement vertex 4\nproperty float x\n\
+        property float y\nproperty float z\nelement face 1\nproperty list uchar uint vertex_indices\n\
+        end_header\n"
+        .to_vec();
+    for p in [
+        [0f32, 0.0, 0.0],
+        [1.0, 0.0, 0.0],
+        [1.0, 1.0, 0.0],
+        [0.0, 1.0, 0.0],
+    ] {
+        p.iter().for_each(|c| binary.extend(c.to_le_bytes()));
+    }
+    binary.push(5);
+    [0u32, 1, 1, 2, 3]
+        .iter()
+        .for_each(|i| binary.extend(i.to_le_bytes()));
+    let cloud = read_cloud_from_bytes(&binary, CloudFormat::Ply, "binary").unwrap();
+    assert_eq!(cloud.faces(), &[[0, 1, 2], [0, 2, 3]]);
+    // The elephant from CGAL: every face, and the normals they give.
+    let mut elephant = read_cloud(&asset("elephant.off"), None).unwrap();
+    assert_eq!((elephant.len(), elephant.faces().len()), (2775, 5558));
+    assert!(elephant.normals().is_none());
+    let source = bevy_point_springs::core::normals::ensure_normals(&mut elephant, 10).unwrap();
+    assert_eq!(
+        source,
+        bevy_point_springs::core::normals::NormalSource::Faces
+    );
+}
+
+#[test]
+fn face_normals_point_out_of_a_closed_mesh_whatever_its_winding() {
+    use bevy_point_springs::core::normals::vertex_normals_from_faces;
+    let corners = [Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::Z];
+    let centre = corners.iter().copied().sum::<Vec3>() / 4.0;
+    let outward = [[0, 2, 1], [0, 1, 3], [1, 2, 3], [0, 3, 2]];
+    let inward = outward.map(|[a, b, c]| [a, c, b]);
+    for faces in [outward, inward] {
+        let normals = vertex_normals_from_faces(&corners, &faces).unwrap();
+        for (p, n) in corners.iter().zip(&normals) {
+            assert!((n.length() - 1.0).abs() < 1e-6);
+            assert!(n.dot(*p - centre) > 0.0, "{faces:?}: {n}");
+        }
+    }
+    // An open mesh keeps its winding; a point without a triangle means no normals from faces.
+    let open = vertex_normals_from_faces(&corners[..3], &[[0, 1, 2]]).unwrap();
+    assert!(open.iter().all(|n| *n == Vec3::Z));
+    assert!(vertex_normals_from_faces(&corners, &[[0, 1, 2]]).is_none());
+}
+
+#[test]
 fn every_format_reads_the_same_cloud() {
     let xyz = "0 0 0 0 0 1\n1 0 0 0 0 1\n0 1 0 0 0 1\n";
     let off = "NOFF\n# comment\n3 0 0\n0 0 0 0 0 1\n1 0 0 0 0 1\n0 1 0 0 0 1\n";
@@ -159,8 +227,9 @@ fn every_format_reads_the_same_cloud() {
         (obj_faces, CloudFormat::Obj),
         (xyz, CloudFormat::Pwn),
     ] {
+        // The same points and normals (the OBJ with a face has the face too).
         let other = read_cloud_from_bytes(text.as_bytes(), format, "b").unwrap();
-        assert_eq!(other, cloud, "{format}");
+        assert_eq!(other.into_parts(), cloud.clone().into_parts(), "{format}");
     }
     let ply = ply_bytes(&cloud, PlyEncoding::Ascii);
     assert_eq!(
@@ -247,6 +316,9 @@ fn is_range(k: &LoadErrorKind) -> bool {
 fn is_unsupported(k: &LoadErrorKind) -> bool {
     matches!(k, LoadErrorKind::Unsupported(_))
 }
+fn is_bad_corner(k: &LoadErrorKind) -> bool {
+    matches!(k, LoadErrorKind::BadCorner { .. })
+}
 fn is_bad_index(k: &LoadErrorKind) -> bool {
     matches!(k, LoadErrorKind::BadIndex { .. })
 }
@@ -284,6 +356,11 @@ fn malformed_input_gives_typed_errors() {
         ("off-garbage-bytes", CloudFormat::Off, GARBAGE.to_vec(), is_not_text, "line 1"),
         ("off-not-off", CloudFormat::Off, b"PLY\n1 0 0\n".to_vec(), is_syntax, "OFF keyword"),
         ("off-binary", CloudFormat::Off, b"OFF BINARY\n".to_vec(), is_unsupported, "binary"),
+        ("off-face-corner", CloudFormat::Off, b"OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 3\n".to_vec(), is_bad_corner, "corner 3"),
+        ("off-face-short", CloudFormat::Off, b"OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n4 0 1 2\n".to_vec(), is_columns, "line 6"),
+        ("off-face-missing", CloudFormat::Off, b"OFF\n3 2 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n".to_vec(), is_truncated, "found 1"),
+        ("off-face-word", CloudFormat::Off, b"OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 x 2\n".to_vec(), is_syntax, "line 6"),
+        ("off-faces-claim-1e12", CloudFormat::Off, b"OFF\n3 1000000000000 0\n0 0 0\n1 0 0\n0 1 0\n".to_vec(), is_too_large, "face"),
         ("off-4d", CloudFormat::Off, b"4OFF\n1 0 0\n0 0 0 0\n".to_vec(), is_unsupported, "3-D"),
         // OBJ
         ("obj-empty", CloudFormat::Obj, b"".to_vec(), is_empty, "no points"),
@@ -297,6 +374,8 @@ fn malformed_input_gives_typed_errors() {
         ("obj-words", CloudFormat::Obj, b"v a b c\n".to_vec(), is_syntax, "line 1"),
         // PLY, ASCII
         ("ply-empty", CloudFormat::Ply, b"".to_vec(), is_empty, "no points"),
+        ("ply-face-corner", CloudFormat::Ply, b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n".to_vec(), is_syntax, "corner 7"),
+        ("ply-faces-claim-1e12", CloudFormat::Ply, b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nelement face 1000000000000\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n".to_vec(), is_too_large, "face"),
         ("ply-zero-vertices", CloudFormat::Ply, ply_header("ascii", 0).into_bytes(), is_empty, "no points"),
         ("ply-ascii-truncated", CloudFormat::Ply, format!("{}1 2 3\n4 5 6\n", ply_header("ascii", 3)).into_bytes(), is_truncated, "3 declared"),
         ("ply-ascii-wrong-count", CloudFormat::Ply, format!("{}1.5 2.5\n3 4 5\n", ply_header("ascii", 2)).into_bytes(), is_ply, "Line"),

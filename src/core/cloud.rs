@@ -35,6 +35,16 @@ pub enum CloudError {
         /// The offending vector.
         value: Vec3,
     },
+    /// A face names a point the cloud does not have, or one point twice.
+    #[error("face {index} {face:?} is not a triangle of the cloud's {points} points")]
+    BadFace {
+        /// Index of the face.
+        index: usize,
+        /// Its corners.
+        face: [u32; 3],
+        /// Number of points.
+        points: usize,
+    },
     /// A coordinate exceeds [`MAX_ABS_COORDINATE`].
     #[error("point {index} has a coordinate beyond ±{MAX_ABS_COORDINATE:e}: {value:?}")]
     OutOfRange {
@@ -77,14 +87,17 @@ pub struct SpacingStats {
     pub max: f32,
 }
 
-/// A point-sampled surface: positions and, when known, unit normals.
+/// A point-sampled surface: positions and, when known, unit normals, and the triangles of a
+/// mesh over the points when the file had one.
 ///
-/// Invariants (checked by [`PointCloud::new`]): every coordinate is finite and within
-/// ±[`MAX_ABS_COORDINATE`]; `normals`, when present, has one entry per position.
+/// Invariants (checked by [`PointCloud::new`] and [`PointCloud::with_faces`]): every
+/// coordinate is finite and within ±[`MAX_ABS_COORDINATE`]; `normals`, when present, has one
+/// entry per position; every face names three distinct points of the cloud.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct PointCloud {
     positions: Vec<Vec3>,
     normals: Option<Vec<Vec3>>,
+    faces: Vec<[u32; 3]>,
 }
 
 impl PointCloud {
@@ -110,7 +123,34 @@ impl PointCloud {
                 }
             }
         }
-        Ok(Self { positions, normals })
+        Ok(Self {
+            positions,
+            normals,
+            faces: Vec::new(),
+        })
+    }
+
+    /// The cloud with the triangles of a mesh over its points (a mesh file's faces). The
+    /// network uses them, where the points' own rings leave holes, as the surface's true
+    /// connectivity (see [`build_network_over`](crate::core::network::build_network_over)).
+    pub fn with_faces(mut self, faces: Vec<[u32; 3]>) -> Result<Self, CloudError> {
+        let points = self.positions.len();
+        for (index, &face @ [a, b, c]) in faces.iter().enumerate() {
+            if a == b || b == c || c == a || face.iter().any(|&v| v as usize >= points) {
+                return Err(CloudError::BadFace {
+                    index,
+                    face,
+                    points,
+                });
+            }
+        }
+        self.faces = faces;
+        Ok(self)
+    }
+
+    /// The triangles of the mesh over the points, if the cloud came with one (else empty).
+    pub fn faces(&self) -> &[[u32; 3]] {
+        &self.faces
     }
 
     /// Number of points.
@@ -164,7 +204,7 @@ impl PointCloud {
         Ok(())
     }
 
-    /// Splits the cloud into its arrays.
+    /// Splits the cloud into its arrays (its faces, if any, are dropped).
     pub fn into_parts(self) -> (Vec<Vec3>, Option<Vec<Vec3>>) {
         (self.positions, self.normals)
     }

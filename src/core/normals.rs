@@ -61,6 +61,9 @@ pub enum NormalSource {
     File,
     /// Estimated by PCA and oriented.
     Estimated(OrientationReport),
+    /// From the file's faces: each vertex's area-weighted sum of its triangles' normals
+    /// (see [`vertex_normals_from_faces`]).
+    Faces,
 }
 
 /// What [`orient_normals`] did.
@@ -389,7 +392,8 @@ pub fn estimate_normals(
 }
 
 /// Gives `cloud` normals: its own when [usable](PointCloud::has_usable_normals) (normalised),
-/// otherwise estimated with `k` neighbours and oriented.
+/// otherwise those of its faces when it has faces at every point
+/// ([`vertex_normals_from_faces`]), otherwise estimated with `k` neighbours and oriented.
 pub fn ensure_normals(cloud: &mut PointCloud, k: usize) -> Result<NormalSource, NormalsError> {
     if cloud.has_usable_normals() {
         let normals = cloud.normals().unwrap_or_default().to_vec();
@@ -397,9 +401,49 @@ pub fn ensure_normals(cloud: &mut PointCloud, k: usize) -> Result<NormalSource, 
         let _ = cloud.set_normals(normals);
         return Ok(NormalSource::File);
     }
+    if let Some(normals) = vertex_normals_from_faces(cloud.positions(), cloud.faces()) {
+        let _ = cloud.set_normals(normals);
+        return Ok(NormalSource::Faces);
+    }
     let (normals, report) = estimate_normals(cloud.positions(), k)?;
     let _ = cloud.set_normals(normals);
     Ok(NormalSource::Estimated(report))
+}
+
+/// Unit vertex normals of a triangle mesh: each vertex's area-weighted sum of its triangles'
+/// normals, so they turn the way the triangles do; on a closed mesh (every edge in two
+/// triangles) wound inwards (negative enclosed volume), turned outwards. `None` when a point
+/// has no triangle with area, or there are no triangles.
+pub fn vertex_normals_from_faces(positions: &[Vec3], faces: &[[u32; 3]]) -> Option<Vec<Vec3>> {
+    if faces.is_empty() {
+        return None;
+    }
+    let mut sums = vec![Vec3::ZERO; positions.len()];
+    let mut volume = 0.0f64;
+    for &t in faces {
+        let [a, b, c] = t.map(|v| positions[v as usize]);
+        let normal = (b - a).cross(c - a);
+        volume += f64::from(a.dot(normal));
+        for v in t {
+            sums[v as usize] += normal;
+        }
+    }
+    let normals: Vec<Vec3> = sums.into_iter().map(Vec3::normalize_or_zero).collect();
+    if normals.contains(&Vec3::ZERO) {
+        return None;
+    }
+    let mut edges: Vec<(u32, u32)> = faces
+        .iter()
+        .flat_map(|&[a, b, c]| [(a, b), (b, c), (c, a)])
+        .map(|(a, b)| (a.min(b), a.max(b)))
+        .collect();
+    edges.sort_unstable();
+    let closed = edges.chunk_by(|x, y| x == y).all(|same| same.len() == 2);
+    Some(if closed && volume < 0.0 {
+        normals.into_iter().map(|n| -n).collect()
+    } else {
+        normals
+    })
 }
 
 #[cfg(test)]

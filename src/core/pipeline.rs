@@ -246,8 +246,9 @@ pub fn prepare_surface(
     let normal_source = match config.normals {
         NormalsSpec::FileOrEstimate(k) => ensure_normals(&mut cloud, k)?,
         NormalsSpec::Estimate(k) => {
+            let faces = cloud.faces().to_vec();
             let (positions, _) = cloud.into_parts();
-            cloud = PointCloud::new(positions, None)?;
+            cloud = PointCloud::new(positions, None)?.with_faces(faces)?;
             ensure_normals(&mut cloud, k)?
         }
     };
@@ -281,12 +282,15 @@ pub fn prepare_surface(
             k: config.simplify.k,
             density: config.material.density,
         },
-        Some(&DenseSupport::new(
-            positions,
-            normals,
-            kept.noise_level,
-            kept.projected.is_some(),
-        )),
+        Some(
+            &DenseSupport::new(
+                positions,
+                normals,
+                kept.noise_level,
+                kept.projected.is_some(),
+            )
+            .with_triangles(cloud.faces()),
+        ),
     )?;
 
     report(Stage::Transfer, 0.0)?;

@@ -5,6 +5,7 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
+use bevy_point_springs::core::PointCloud;
 use bevy_point_springs::core::denoise::noise_level;
 use bevy_point_springs::core::io::CloudFormat;
 use bevy_point_springs::core::knn::KnnIndex;
@@ -35,6 +36,10 @@ pub struct NetworkArgs {
     /// Read every file as this format instead of the one its extension names.
     #[arg(long)]
     format: Option<CloudFormat>,
+    /// Leave out a mesh file's faces: treat its vertices as a bare point cloud (normals
+    /// estimated by PCA unless the file has its own).
+    #[arg(long)]
+    ignore_faces: bool,
     /// Print JSON instead of a Markdown table.
     #[arg(long)]
     json: bool,
@@ -61,6 +66,11 @@ struct Row {
     non_manifold_edges: usize,
     points_without_triangle: usize,
     closing_triangles: usize,
+    /// Faces the file had (as triangles), used unless `--ignore-faces`.
+    faces: usize,
+    /// Whether the network is the fine mesh (the file's, or the dense points' network)
+    /// collapsed onto the simulation points.
+    collapsed: bool,
     total_mass: f32,
     noise_seconds: f64,
     simplify_seconds: f64,
@@ -77,7 +87,7 @@ pub fn bench_network(args: &NetworkArgs) -> Result<(), Failure> {
     let mut rows = Vec::new();
     if !args.json {
         println!(
-            "| cloud | points | level | sim | added | noise | closed | χ | comp. | loops | boundary pts | fold-overs | crossings | non-manifold | no triangle | closing tris | Σm | noise s | simplify s | network s |"
+            "| cloud | points | level | sim | added | noise | closed | χ | comp. | loops | boundary pts | fold-overs | crossings | non-manifold | no triangle | closing tris | faces | collapsed | Σm | noise s | simplify s | network s |"
         );
         println!(
             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
@@ -85,8 +95,13 @@ pub fn bench_network(args: &NetworkArgs) -> Result<(), Failure> {
     }
     for file in &args.files {
         let mut cloud = load(file, args.format)?;
+        if args.ignore_faces {
+            let (positions, normals) = cloud.into_parts();
+            cloud = PointCloud::new(positions, normals).map_err(Failure::bad_input)?;
+        }
         ensure_normals(&mut cloud, DEFAULT_NORMAL_K).map_err(Failure::bad_input)?;
         let (positions, normals) = (cloud.positions(), cloud.normals().unwrap_or_default());
+        let faces = cloud.faces();
         let start = Instant::now();
         let measured = noise_level(positions, &KnnIndex::build(positions));
         let noise_seconds = start.elapsed().as_secs_f64();
@@ -120,7 +135,8 @@ pub fn bench_network(args: &NetworkArgs) -> Result<(), Failure> {
                 normals,
                 kept.noise_level,
                 kept.projected.is_some(),
-            );
+            )
+            .with_triangles(faces);
             let net = build_network_over(
                 &p,
                 &n,
@@ -151,6 +167,8 @@ pub fn bench_network(args: &NetworkArgs) -> Result<(), Failure> {
                 non_manifold_edges: r.non_manifold_edges,
                 points_without_triangle: r.isolated_points,
                 closing_triangles: r.closing_triangles,
+                faces: faces.len(),
+                collapsed: r.collapsed_from_dense,
                 total_mass: r.total_mass,
                 noise_seconds,
                 simplify_seconds,
@@ -158,7 +176,7 @@ pub fn bench_network(args: &NetworkArgs) -> Result<(), Failure> {
             };
             if !args.json {
                 println!(
-                    "| {} | {} | {}% | {} | {} | {:.2}{} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {:.4} | {:.2} | {:.2} | {:.3} |",
+                    "| {} | {} | {}% | {} | {} | {:.2}{} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {:.4} | {:.2} | {:.2} | {:.3} |",
                     row.cloud,
                     row.points,
                     row.level_percent,
@@ -176,6 +194,8 @@ pub fn bench_network(args: &NetworkArgs) -> Result<(), Failure> {
                     row.non_manifold_edges,
                     row.points_without_triangle,
                     row.closing_triangles,
+                    row.faces,
+                    if row.collapsed { "yes" } else { "no" },
                     row.total_mass,
                     row.noise_seconds,
                     row.simplify_seconds,

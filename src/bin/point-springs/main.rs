@@ -333,6 +333,11 @@ struct SimplifyReport {
     closing_triangles: usize,
     filling_points: usize,
     isolated_points: usize,
+    /// Faces the file had (as triangles).
+    faces: usize,
+    /// Whether the network is a fine mesh (the file's faces, or the dense points' own network)
+    /// collapsed onto the simulation points.
+    collapsed_from_dense: bool,
     total_mass: f32,
     area: f32,
     min_diameter: Option<f32>,
@@ -547,7 +552,7 @@ fn run(command: Command) -> Result<(), Failure> {
             };
             write_ply(&output, &cloud, encoding).map_err(Failure::other)?;
             let report = match source {
-                NormalSource::File => None,
+                NormalSource::File | NormalSource::Faces => None,
                 NormalSource::Estimated(r) => Some(r),
             };
             let out = NormalsReport {
@@ -635,7 +640,8 @@ fn run(command: Command) -> Result<(), Failure> {
                 dense_normals,
                 kept.noise_level,
                 kept.projected.is_some(),
-            );
+            )
+            .with_triangles(cloud.faces());
             let network = build_network_over(&positions, &normals, &network_config, Some(&dense))
                 .map_err(Failure::bad_input)?;
             let network_seconds = network_start.elapsed().as_secs_f64();
@@ -658,6 +664,7 @@ fn run(command: Command) -> Result<(), Failure> {
                 input_points: cloud.len(),
                 normals: match source {
                     NormalSource::File => "file",
+                    NormalSource::Faces => "faces",
                     NormalSource::Estimated(_) => "estimated",
                 },
                 k,
@@ -687,6 +694,8 @@ fn run(command: Command) -> Result<(), Failure> {
                 closing_triangles: r.closing_triangles,
                 filling_points: r.filling_points,
                 isolated_points: r.isolated_points,
+                faces: cloud.faces().len(),
+                collapsed_from_dense: r.collapsed_from_dense,
                 total_mass: r.total_mass,
                 area: r.area,
                 min_diameter: finite(r.min_diameter),
@@ -729,6 +738,16 @@ fn run(command: Command) -> Result<(), Failure> {
                     report.filling_points,
                     report.components
                 );
+                if report.collapsed_from_dense {
+                    println!(
+                        "built from    {} collapsed onto the simulation points (their rings left holes)",
+                        if report.faces > 0 {
+                            "the file's faces"
+                        } else {
+                            "the dense points' own network"
+                        }
+                    );
+                }
                 println!(
                     "boundary      {} points in {} loop(s)",
                     report.boundary_points, report.boundary_loops

@@ -2,10 +2,14 @@
 //!
 //! | format | read | write | contents |
 //! |---|---|---|---|
-//! | PLY (`.ply`) | ASCII, binary little and big endian ([ply-rs-bw]) | ASCII, binary | `vertex` element: `x y z` (any scalar type), normals as `nx ny nz` or `normal_x normal_y normal_z` |
+//! | PLY (`.ply`) | ASCII, binary little and big endian ([ply-rs-bw]) | ASCII, binary | `vertex` element: `x y z` (any scalar type), normals as `nx ny nz` or `normal_x normal_y normal_z`; `face` element's `vertex_indices` |
 //! | XYZ (`.xyz`), PWN (`.pwn`) | yes | — | one point a line: `x y z` or `x y z nx ny nz` |
-//! | OFF (`.off`) | yes | — | vertices (`OFF`, `NOFF` with normals, `COFF`…); faces ignored |
-//! | OBJ (`.obj`) | yes | — | `v` lines; `vn` lines paired by index or through `f v//vn` references |
+//! | OFF (`.off`) | yes | — | vertices (`OFF`, `NOFF` with normals, `COFF`…) and faces (polygons as fans) |
+//! | OBJ (`.obj`) | yes | — | `v` lines; `vn` lines paired by index or through `f v//vn` references; `f` faces |
+//!
+//! Faces are kept as triangles ([`PointCloud::faces`], each polygon a fan from its first
+//! corner): the network uses them as the surface's connectivity where the simulation points'
+//! rings leave holes, and a file without normals gets its faces' normals.
 //!
 //! The format is chosen from the extension ([`CloudFormat::from_path`]) unless given.
 //! Every malformed file gives a [`LoadError`] that names the file and the line or element;
@@ -38,9 +42,9 @@ pub enum CloudFormat {
     Xyz,
     /// Points with normals, `x y z nx ny nz` lines (CGAL's `.pwn`); read like [`CloudFormat::Xyz`].
     Pwn,
-    /// Object File Format; vertices only.
+    /// Object File Format; vertices and faces.
     Off,
-    /// Wavefront OBJ; `v` and `vn` lines.
+    /// Wavefront OBJ; `v`, `vn` and `f` lines.
     Obj,
 }
 
@@ -221,9 +225,34 @@ pub enum LoadErrorKind {
         /// How many exist at that point.
         count: usize,
     },
+    /// An OFF face names a vertex the file does not have (OFF counts from 0).
+    #[error(
+        "line {line}: face corner {index} names no vertex (the file has {count}, numbered from 0)"
+    )]
+    BadCorner {
+        /// 1-based line number.
+        line: usize,
+        /// The index as written.
+        index: u64,
+        /// How many vertices the file has.
+        count: usize,
+    },
     /// The arrays read do not form a valid cloud.
     #[error(transparent)]
     Cloud(#[from] CloudError),
+}
+
+/// Appends the triangles of a polygon (its corners in order) as a fan from its first corner,
+/// leaving out triangles that name a point twice.
+pub(super) fn fan(corners: &[u32], triangles: &mut Vec<[u32; 3]>) {
+    let Some((&first, rest)) = corners.split_first() else {
+        return;
+    };
+    triangles.extend(
+        rest.windows(2)
+            .map(|w| [first, w[0], w[1]])
+            .filter(|&[a, b, c]| a != b && b != c && c != a),
+    );
 }
 
 fn found_suffix(found: Option<u64>) -> String {

@@ -6,7 +6,8 @@
 //! 2. by index, when there are exactly as many `vn` as `v` lines (the usual point-cloud export);
 //! 3. otherwise the cloud has no normals.
 //!
-//! Other statements (`vt`, `g`, `usemtl`, `l`, …) are ignored.
+//! Faces (`f`) are kept as triangles (each polygon as a fan from its first corner). Other
+//! statements (`vt`, `g`, `usemtl`, `l`, …) are ignored.
 
 use glam::Vec3;
 
@@ -19,6 +20,9 @@ pub(super) fn read(bytes: &[u8]) -> Result<PointCloud, LoadErrorKind> {
     let mut file_normals: Vec<Vec3> = Vec::new();
     // (vertex index, normal index) pairs from face corners, 0-based.
     let mut corners: Vec<(u32, u32)> = Vec::new();
+    // The current face's vertices, and the triangles of all faces.
+    let mut polygon: Vec<u32> = Vec::new();
+    let mut faces: Vec<[u32; 3]> = Vec::new();
     let mut lines = TextLines::new(bytes);
     while let Some(item) = lines.next_content() {
         let (line, content) = item?;
@@ -29,23 +33,26 @@ pub(super) fn read(bytes: &[u8]) -> Result<PointCloud, LoadErrorKind> {
             }
             Some("vn") => file_normals.push(normal(parse_numbers(tokens, line, "3")?, line)?),
             Some("f") => {
+                polygon.clear();
                 for corner in tokens {
                     let mut parts = corner.split('/');
                     let v = parts.next().unwrap_or("");
                     let n = parts.nth(1).unwrap_or("");
                     let v = resolve(v, positions.len(), line, "vertex")?;
+                    polygon.push(v);
                     if !n.is_empty() {
                         let n = resolve(n, file_normals.len(), line, "normal")?;
                         corners.push((v, n));
                     }
                 }
+                super::fan(&polygon, &mut faces);
             }
             _ => {}
         }
     }
     let normals = normals_from_faces(positions.len(), &file_normals, &corners)
         .or_else(|| (file_normals.len() == positions.len()).then_some(file_normals));
-    Ok(PointCloud::new(positions, normals)?)
+    Ok(PointCloud::new(positions, normals)?.with_faces(faces)?)
 }
 
 /// Resolves a 1-based (or negative, relative) OBJ index against `count` items defined so far.

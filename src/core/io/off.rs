@@ -1,4 +1,5 @@
-//! OFF (Object File Format): the vertex list; faces and edges are ignored.
+//! OFF (Object File Format): the vertex list and the faces (each polygon as a fan of
+//! triangles from its first corner); edge counts are ignored.
 //!
 //! Accepts the keyword variants `OFF`, `NOFF` (normals after the position), `COFF`, `CNOFF`,
 //! `STOFF`… (extra per-vertex values are ignored), counts on the keyword line or the next one,
@@ -10,6 +11,9 @@ use crate::core::cloud::PointCloud;
 
 /// Fewest bytes one ASCII vertex line can take: `0 0 0\n`.
 const MIN_VERTEX_LINE_BYTES: u64 = 6;
+
+/// Fewest bytes one ASCII face line can take: `3 0 1 2\n`.
+const MIN_FACE_LINE_BYTES: u64 = 8;
 
 pub(super) fn read(bytes: &[u8]) -> Result<PointCloud, LoadErrorKind> {
     let mut lines = TextLines::new(bytes);
@@ -90,5 +94,66 @@ pub(super) fn read(bytes: &[u8]) -> Result<PointCloud, LoadErrorKind> {
             positions.push(position(v, line)?);
         }
     }
-    Ok(PointCloud::new(positions, has_normals.then_some(normals))?)
+    let count = positions.len();
+    let cloud = PointCloud::new(positions, has_normals.then_some(normals))?;
+    let faces = read_faces(&mut lines, rest.get(1).copied(), count_line, count)?;
+    Ok(cloud.with_faces(faces)?)
+}
+
+/// The faces after the vertices, as triangles; none when the header declares none.
+fn read_faces(
+    lines: &mut TextLines,
+    declared: Option<&str>,
+    count_line: usize,
+    vertices: usize,
+) -> Result<Vec<[u32; 3]>, LoadErrorKind> {
+    let declared = match declared {
+        Some(token) => parse_count(token, count_line, "face")?,
+        None => 0,
+    };
+    let payload_bytes = lines.remaining_bytes() as u64;
+    let max = payload_bytes / MIN_FACE_LINE_BYTES;
+    if declared > max.saturating_mul(super::TRUNCATION_FACTOR) {
+        return Err(LoadErrorKind::CountTooLarge {
+            element: "face".into(),
+            declared,
+            payload_bytes,
+            max,
+        });
+    }
+    let mut triangles = Vec::with_capacity(declared.min(max) as usize);
+    let mut corners = Vec::new();
+    for read in 0..declared {
+        let Some(item) = lines.next_content() else {
+            return Err(LoadErrorKind::Truncated {
+                element: "face".into(),
+                declared,
+                found: Some(read),
+            });
+        };
+        let (line, content) = item?;
+        let mut tokens = content.split_ascii_whitespace();
+        let size = parse_count(tokens.next().unwrap_or(""), line, "corner")?;
+        corners.clear();
+        for token in tokens.by_ref().take(size.min(vertices as u64) as usize) {
+            let index = parse_count(token, line, "vertex index")?;
+            if index >= vertices as u64 {
+                return Err(LoadErrorKind::BadCorner {
+                    line,
+                    index,
+                    count: vertices,
+                });
+            }
+            corners.push(index as u32);
+        }
+        if (corners.len() as u64) < size {
+            return Err(LoadErrorKind::ColumnCount {
+                line,
+                expected: format!("1 + {size}"),
+                found: 1 + corners.len(),
+            });
+        }
+        super::fan(&corners, &mut triangles);
+    }
+    Ok(triangles)
 }

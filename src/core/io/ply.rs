@@ -1,10 +1,11 @@
 //! PLY through [`ply_rs_bw`]: ASCII and binary (both endians) reading, ASCII and binary writing.
 //!
 //! Reading takes the `vertex` element's `x y z` (any scalar type) and its normals when all three
-//! of `nx ny nz` (or `normal_x normal_y normal_z`) are present. Elements after `vertex`
-//! (faces…) are not read. Before any element is parsed, the element counts are checked against
-//! the bytes after the header, so a header that claims 10^12 vertices is rejected without
-//! allocating for them.
+//! of `nx ny nz` (or `normal_x normal_y normal_z`) are present, and the `face` element's
+//! `vertex_indices` (or `vertex_index`) lists when it comes after `vertex`, each polygon as a
+//! fan of triangles. Other elements are skipped. Before any element is parsed, the element
+//! counts are checked against the bytes after the header, so a header that claims 10^12
+//! vertices is rejected without allocating for them.
 
 use std::io::Write;
 
@@ -33,6 +34,8 @@ pub enum PlyEncoding {
 }
 
 const VERTEX: &str = "vertex";
+const FACE: &str = "face";
+const FACE_LIST_NAMES: [&str; 2] = ["vertex_indices", "vertex_index"];
 const POSITION_NAMES: [&str; 3] = ["x", "y", "z"];
 const NORMAL_NAME_SETS: [[&str; 3]; 2] = [["nx", "ny", "nz"], ["normal_x", "normal_y", "normal_z"]];
 
@@ -72,6 +75,34 @@ impl PropertyAccess for PlyVertex {
             _ => return PropertyAccessResult::Ignored,
         };
         self.values[slot] = value;
+        PropertyAccessResult::Set
+    }
+}
+
+/// One face: its corners as written.
+#[derive(Debug, Clone, Default)]
+struct PlyFace {
+    corners: Vec<i64>,
+}
+
+impl PropertyAccess for PlyFace {
+    fn new() -> Self {
+        Self::default()
+    }
+
+    fn set_property(&mut self, name: &str, property: Property) -> PropertyAccessResult {
+        if !FACE_LIST_NAMES.contains(&name) {
+            return PropertyAccessResult::Ignored;
+        }
+        self.corners = match property {
+            Property::ListChar(v) => v.into_iter().map(i64::from).collect(),
+            Property::ListUChar(v) => v.into_iter().map(i64::from).collect(),
+            Property::ListShort(v) => v.into_iter().map(i64::from).collect(),
+            Property::ListUShort(v) => v.into_iter().map(i64::from).collect(),
+            Property::ListInt(v) => v.into_iter().map(i64::from).collect(),
+            Property::ListUInt(v) => v.into_iter().map(i64::from).collect(),
+            _ => return PropertyAccessResult::Ignored,
+        };
         PropertyAccessResult::Set
     }
 }
@@ -159,7 +190,16 @@ pub(super) fn read(bytes: &[u8]) -> Result<PointCloud, LoadErrorKind> {
         .iter()
         .any(|set| set.iter().all(|n| scalar(n)));
 
-    // Check every count up to the vertex element against the bytes available.
+    // The faces are read when they come after the vertices.
+    let names: Vec<&str> = header.elements.values().map(|d| d.name.as_str()).collect();
+    let face_at = names.iter().position(|&n| n == FACE).filter(|&f| {
+        names
+            .iter()
+            .position(|&n| n == VERTEX)
+            .is_some_and(|v| f > v)
+    });
+    let last = face_at.map_or(VERTEX, |_| FACE);
+    // Check every count up to the last element read against the bytes available.
     let payload_bytes = payload_offset(bytes).map_or(0, |o| bytes.len() - o) as u64;
     let mut needed: u64 = 0;
     for def in header.elements.values() {
@@ -188,7 +228,7 @@ pub(super) fn read(bytes: &[u8]) -> Result<PointCloud, LoadErrorKind> {
             }
         }
         needed = needed.saturating_add(declared.saturating_mul(min));
-        if def.name == VERTEX {
+        if def.name == last {
             break;
         }
     }
@@ -204,7 +244,53 @@ pub(super) fn read(bytes: &[u8]) -> Result<PointCloud, LoadErrorKind> {
     let vertices = Parser::<PlyVertex>::new()
         .read_payload_for_element(&mut reader, vertex_def, &header)
         .map_err(|e| element_error(&e, vertex_def, bytes))?;
-    convert(&vertices, has_normals, &header)
+    let cloud = convert(&vertices, has_normals, &header)?;
+    if face_at.is_none() {
+        return Ok(cloud);
+    }
+    let mut faces = Vec::new();
+    for def in header
+        .elements
+        .values()
+        .skip_while(|d| d.name != VERTEX)
+        .skip(1)
+    {
+        if def.name != FACE {
+            Parser::<Skipped>::new()
+                .read_payload_for_element(&mut reader, def, &header)
+                .map_err(|e| element_error(&e, def, bytes))?;
+            continue;
+        }
+        let read = Parser::<PlyFace>::new()
+            .read_payload_for_element(&mut reader, def, &header)
+            .map_err(|e| element_error(&e, def, bytes))?;
+        faces = triangles(&read, cloud.len())?;
+        break;
+    }
+    Ok(cloud.with_faces(faces)?)
+}
+
+/// The faces' triangles (each polygon a fan), checking that every corner names a vertex.
+fn triangles(faces: &[PlyFace], vertices: usize) -> Result<Vec<[u32; 3]>, LoadErrorKind> {
+    let mut out = Vec::with_capacity(faces.len());
+    let mut corners = Vec::new();
+    for (index, face) in faces.iter().enumerate() {
+        corners.clear();
+        for &c in &face.corners {
+            if !(0..vertices as i64).contains(&c) {
+                return Err(LoadErrorKind::Syntax {
+                    location: Location::Element {
+                        name: format!("{FACE} (0-based)"),
+                        index,
+                    },
+                    message: format!("corner {c} names no vertex (the file has {vertices})"),
+                });
+            }
+            corners.push(c as u32);
+        }
+        super::fan(&corners, &mut out);
+    }
+    Ok(out)
 }
 
 /// Maps a payload error; for ASCII files the offending line is quoted so the message shows

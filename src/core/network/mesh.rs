@@ -199,6 +199,59 @@ impl SurfaceMesh {
         loops
     }
 
+    /// The mesh of `triangles` (each counter-clockwise around the unit `normals`), made
+    /// without any test: each point's sectors in the order its fan links them (a fan that
+    /// is not one chain, at a pinch, is listed chain after chain).
+    pub fn from_triangles(positions: &[Vec3], normals: &[Vec3], triangles: &[[u32; 3]]) -> Self {
+        let mut fans: Vec<Vec<(u32, u32)>> = vec![Vec::new(); positions.len()];
+        for &[a, b, c] in triangles {
+            fans[a as usize].push((b, c));
+            fans[b as usize].push((c, a));
+            fans[c as usize].push((a, b));
+        }
+        let wedges = fans
+            .into_iter()
+            .enumerate()
+            .map(|(v, mut fan)| {
+                let centre = positions[v];
+                let (t1, t2) = normals[v].any_orthonormal_pair();
+                let angle = |u: u32| {
+                    let d = positions[u as usize] - centre;
+                    d.dot(t2).atan2(d.dot(t1))
+                };
+                let mut ordered = Vec::with_capacity(fan.len());
+                while !fan.is_empty() {
+                    // A chain starts after a gap when there is one.
+                    let start = (0..fan.len())
+                        .find(|&i| !fan.iter().any(|w| w.1 == fan[i].0))
+                        .unwrap_or(0);
+                    let mut at = fan.swap_remove(start);
+                    ordered.push(at);
+                    while let Some(next) = fan.iter().position(|w| w.0 == at.1) {
+                        at = fan.swap_remove(next);
+                        ordered.push(at);
+                    }
+                }
+                ordered
+                    .into_iter()
+                    .map(|(from, to)| {
+                        let start = angle(from);
+                        Wedge {
+                            from,
+                            to,
+                            start,
+                            sweep: (angle(to) - start).rem_euclid(TAU),
+                        }
+                    })
+                    .collect()
+            })
+            .collect();
+        Self {
+            wedges,
+            ..Self::default()
+        }
+    }
+
     /// The gaps at point `v` as (vertex before, vertex after), counter-clockwise.
     fn gaps(&self, v: usize) -> impl Iterator<Item = (u32, u32)> + '_ {
         let w = &self.wedges[v];
@@ -611,6 +664,7 @@ impl Builder<'_> {
     /// triangle facing within 90° of its corners' mean normal. The new sectors go into the
     /// corners' fans in place of the old one.
     fn split_for_isolated(&mut self, graph: &KnnGraph) {
+        let mut over_edges = Vec::new();
         let normals = &self.normals;
         // Points added to fill holes always have their fans.
         for v in 0..graph.len() as u32 {
@@ -640,7 +694,10 @@ impl Builder<'_> {
                     && faces_up(b, c)
                     && faces_up(c, a)
             });
-            let Some([a, b, c]) = inside else { continue };
+            let Some([a, b, c]) = inside else {
+                over_edges.push(v);
+                continue;
+            };
             for (corner, from, to) in [(a, b, c), (b, c, a), (c, a, b)] {
                 let first = self.raw_wedge(corner, from, v);
                 let second = self.raw_wedge(corner, v, to);
@@ -657,6 +714,70 @@ impl Builder<'_> {
             ];
             self.mesh.stats.inserted += 1;
         }
+        for v in over_edges {
+            self.split_edge_for(v, graph);
+        }
+    }
+
+    /// Step 5 where `v` projects into no triangle: it lies over an inner edge a–b of its
+    /// neighbours' triangles (a, b, c) and (b, a, d), between a and b and within the edge's
+    /// length of it, and splits both into four, each facing within 90° of its corners' mean
+    /// normal. The nearest such edge is split.
+    fn split_edge_for(&mut self, v: u32, graph: &KnnGraph) {
+        let p = self.positions[v as usize];
+        let at = |i: u32| self.positions[i as usize];
+        let faces_up = |t: [u32; 3]| {
+            let [x, y, z] = t.map(at);
+            let mean: Vec3 = t.iter().map(|&i| self.normals[i as usize]).sum();
+            (y - x).cross(z - x).dot(mean) > 0.0
+        };
+        let mut best: Option<(f32, [u32; 4])> = None;
+        for [a, b, c] in self.triangles_near(v, graph) {
+            // The twin across a–b, as the wedge at a from d to b.
+            let Some(d) = self.mesh.wedges[a as usize]
+                .iter()
+                .find(|w| w.to == b)
+                .map(|w| w.from)
+            else {
+                continue;
+            };
+            let (pa, pb) = (at(a), at(b));
+            let edge = pb - pa;
+            let t = (p - pa).dot(edge) / edge.length_squared();
+            let distance = (pa + edge * t).distance(p);
+            let fits = (0.05..=0.95).contains(&t)
+                && distance < edge.length()
+                && d != c
+                && [[a, v, c], [v, b, c], [b, v, d], [v, a, d]]
+                    .into_iter()
+                    .all(faces_up);
+            if fits && best.is_none_or(|(nearest, _)| distance < nearest) {
+                best = Some((distance, [a, b, c, d]));
+            }
+        }
+        let Some((_, [a, b, c, d])) = best else {
+            return;
+        };
+        let replace = |b: &mut Self, corner: u32, from: u32, to: u32, new: &[(u32, u32)]| {
+            let wedges: Vec<Wedge> = new
+                .iter()
+                .map(|&(f, t)| b.raw_wedge(corner, f, t))
+                .collect();
+            let fan = &mut b.mesh.wedges[corner as usize];
+            if let Some(i) = fan.iter().position(|w| w.from == from && w.to == to) {
+                fan.splice(i..=i, wedges);
+            }
+        };
+        replace(self, a, b, c, &[(v, c)]);
+        replace(self, a, d, b, &[(d, v)]);
+        replace(self, b, c, a, &[(c, v)]);
+        replace(self, b, a, d, &[(v, d)]);
+        replace(self, c, a, b, &[(a, v), (v, b)]);
+        replace(self, d, b, a, &[(b, v), (v, a)]);
+        self.mesh.wedges[v as usize] = [(a, d), (d, b), (b, c), (c, a)]
+            .map(|(f, t)| self.raw_wedge(v, f, t))
+            .to_vec();
+        self.mesh.stats.inserted += 1;
     }
 
     /// The triangles at `v`'s nearest neighbours (each as often as it has corners there).

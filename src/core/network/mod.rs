@@ -7,7 +7,10 @@
 //!    and the gaps left at points whose own ring is closed are closed with ears (see
 //!    [`mesh`]): on a closed surface the result is closed (E = 3V − 6 on a sphere), and an open
 //!    surface keeps exactly its true boundary. No two springs at a point cross and no triangle
-//!    folds over (every triangle's normal is within 90° of its corners' normals).
+//!    folds over (every triangle's normal is within 90° of its corners' normals). Where the
+//!    rings still leave holes, a fine mesh over the dense points (a mesh file's faces, or the
+//!    dense points' own network) is collapsed onto the simulation points instead (see
+//!    [`build_network_over`]), which keeps that mesh's topology.
 //! 3. **Springs.** Stretch springs along every edge of the mesh; bend springs between the far
 //!    corners of the two triangles at each inner edge (around a point, ring vertices r and
 //!    r + 2), minus pairs that already share a stretch spring. Rest lengths come from the rest
@@ -29,11 +32,12 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use crate::core::cloud::first_invalid_point;
-use crate::core::knn::KnnIndex;
+use crate::core::knn::{KnnGraph, KnnIndex};
 use crate::core::normals::orient_normals;
 use crate::core::ring::{RingBuilder, RingShape};
 
 mod check;
+mod collapse;
 pub mod mesh;
 use crate::core::simplify::{MAX_SIMPLIFY_K, MIN_SIMPLIFY_K, MIN_SIMULATION_POINTS};
 
@@ -166,6 +170,10 @@ pub struct NetworkReport {
     pub filling_points: usize,
     /// Points left without any triangle.
     pub isolated_points: usize,
+    /// Whether the network is the dense points' own network collapsed onto the simulation
+    /// points, because the simulation points' rings left more holes (see
+    /// [`build_network_over`]).
+    pub collapsed_from_dense: bool,
     /// Springs added to give stragglers [`MIN_STRETCH_SPRINGS`].
     pub fallback_springs: usize,
     /// Points without a triangle that got the mean mass.
@@ -234,6 +242,8 @@ pub struct DenseSupport<'a> {
     /// Neighbours of the local plane a dense point is projected on before it becomes a
     /// simulation point, when the simulation points were (see [`Denoise`](crate::core::denoise::Denoise)).
     fit_k: Option<usize>,
+    /// The triangles of a mesh over the dense points, when the file had one.
+    triangles: &'a [[u32; 3]],
 }
 
 /// How far along a closing triangle's plane (in local dense spacings: the mean distance to
@@ -257,7 +267,18 @@ impl<'a> DenseSupport<'a> {
             index: KnnIndex::build(positions),
             reach: SUPPORT_SPACINGS + 3.0 * noise.max(0.0),
             fit_k: fitted.then(|| crate::core::denoise::fit_k(noise)),
+            triangles: &[],
         }
+    }
+
+    /// The dense surface with the triangles of a mesh over its points (a mesh file's faces,
+    /// [`PointCloud::faces`](crate::core::cloud::PointCloud::faces)), each naming three
+    /// distinct points. Where the simulation points' rings leave holes, the network is then
+    /// this mesh collapsed onto them when that leaves fewer (see [`build_network_over`]);
+    /// triangles that do not make a manifold surface are not used.
+    pub fn with_triangles(mut self, triangles: &'a [[u32; 3]]) -> Self {
+        self.triangles = triangles;
+        self
     }
 
     /// Whether the dense surface lies under the triangle (a, b, c).
@@ -326,7 +347,12 @@ pub fn build_network(
 /// or a sharp turn sampled too coarsely for its points' rings to agree), the dense points in
 /// their gaps are added about twice as finely as the holes' edges and the network is built
 /// again, up to [`REFINE_ROUNDS`] times, each kept only when it leaves fewer points on holes.
-/// Added points join the network's points after the given ones.
+/// Where holes (or points without a triangle) are still left, a fine mesh over the dense
+/// points (the file's faces given by [`DenseSupport::with_triangles`], or else the dense
+/// points' own network) is collapsed onto the simulation points, which keeps its topology:
+/// that network is taken when it has fewer boundary loops, or as many and fewer boundary
+/// points ([`NetworkReport::collapsed_from_dense`]). Added points join the network's points
+/// after the given ones.
 pub fn build_network_over(
     positions: &[Vec3],
     normals: &[Vec3],
@@ -360,8 +386,149 @@ pub fn build_network_over(
         }
         (net, holes) = (next, next_holes);
     }
+    if (!holes.loops.is_empty() || net.report.isolated_points > 0)
+        && let Some(repaired) = collapsed_from_dense(positions, normals, config, dense, &holes)
+    {
+        let ring = &net.report;
+        let better = (
+            repaired.report.boundary_loops,
+            repaired.report.boundary_points,
+        ) < (ring.boundary_loops, ring.boundary_points);
+        if better {
+            let (min_diameter, max_diameter) = (ring.min_diameter, ring.max_diameter);
+            net = repaired;
+            net.report.min_diameter = min_diameter;
+            net.report.max_diameter = max_diameter;
+        }
+    }
     net.report.filling_points = net.len() - positions.len();
     Ok(net)
+}
+
+/// Most dense points whose own network [`build_network_over`] builds to repair the holes
+/// the simulation points' rings leave (beyond it, holes are left as they are).
+pub const MAX_REPAIR_DENSE_POINTS: usize = 250_000;
+
+/// A fine mesh over the dense points collapsed onto the simulation points (see [`collapse`]):
+/// the file's faces when they make an oriented manifold, otherwise the dense points' own
+/// network when it leaves no more holes than the simulation points' rings left (`holes`).
+/// `None` when there is no such mesh (the dense network has more holes, or was not built: the
+/// cloud is larger than [`MAX_REPAIR_DENSE_POINTS`] or noisy), or a simulation point is not
+/// a dense point (or its projection on a local fit).
+fn collapsed_from_dense(
+    positions: &[Vec3],
+    normals: &[Vec3],
+    config: &NetworkConfig,
+    dense: &DenseSupport,
+    holes: &Holes,
+) -> Option<SpringNetwork> {
+    let (dense_p, dense_n) = (dense.positions, dense.normals);
+    if dense_n.len() != dense_p.len() {
+        return None;
+    }
+    // The fine mesh: the file's, or the dense points' own network.
+    let (fine_p, mut fine_n, mut fine_t): (Cow<[Vec3]>, Vec<Vec3>, Vec<[u32; 3]>) =
+        match collapse::manifold_normals(dense_p, dense.triangles) {
+            Some(normals) => (Cow::Borrowed(dense_p), normals, dense.triangles.to_vec()),
+            None => {
+                // On a noisy cloud (decided on local fits) the dense points' own rings are
+                // far worse than the coarse ones (the CGAL sphere scan: 109 loops at its
+                // 21 002 points, projected on their fits or not): not worth a build.
+                if dense_p.len() > MAX_REPAIR_DENSE_POINTS || dense.fit_k.is_some() {
+                    return None;
+                }
+                let (fine, fine_holes) = build_once(dense_p, dense_n, config, Some(dense)).ok()?;
+                if fine_holes.loops.len() > holes.loops.len() {
+                    return None;
+                }
+                (
+                    Cow::Owned(fine.positions),
+                    fine_holes.normals,
+                    fine.triangles,
+                )
+            }
+        };
+    // Each simulation point is the dense point nearest to it (itself, or what was projected).
+    let mut keep = vec![false; fine_p.len()];
+    let mut source = Vec::with_capacity(positions.len());
+    for &p in positions {
+        let j = dense.near(p, 1).next()? as usize;
+        if std::mem::replace(&mut keep[j], true) {
+            return None;
+        }
+        source.push(j);
+    }
+    // Turn the fine mesh the way most simulation points' normals face.
+    let against = source
+        .iter()
+        .zip(normals)
+        .filter(|&(&j, n)| fine_n[j].dot(*n) < 0.0)
+        .count();
+    if 2 * against > positions.len() {
+        fine_t.iter_mut().for_each(|t| t.swap(1, 2));
+        fine_n.iter_mut().for_each(|n| *n = -*n);
+    }
+    // The simulation points keep their own normals (turned the fine mesh's way), so that no
+    // collapse folds a triangle over from them.
+    let along = |n: Vec3, j: usize| {
+        let n = n.normalize_or_zero();
+        match n.dot(fine_n[j]) {
+            d if d < 0.0 => -n,
+            d if d > 0.0 => n,
+            _ => fine_n[j],
+        }
+    };
+    let mut corner_n: Vec<Vec3> = (0..fine_p.len())
+        .map(|j| dense_n.get(j).map_or(fine_n[j], |&n| along(n, j)))
+        .collect();
+    for (&j, &n) in source.iter().zip(normals) {
+        corner_n[j] = along(n, j);
+    }
+    let collapsed = collapse::collapse_onto(&fine_p, &corner_n, &fine_t, &keep);
+    // Renumber: the simulation points as given, then the dense points left.
+    let n = positions.len();
+    let mut number = vec![u32::MAX; fine_p.len()];
+    for (i, &j) in source.iter().enumerate() {
+        number[j] = i as u32;
+    }
+    let mut added = Vec::with_capacity(collapsed.left.len());
+    for (k, &j) in collapsed.left.iter().enumerate() {
+        number[j as usize] = (n + k) as u32;
+        let j = j as usize;
+        added.push(if j < dense_p.len() {
+            let (p, normal) = dense.fitted_point(j as u32);
+            (p, along(normal, j))
+        } else {
+            (fine_p[j], corner_n[j])
+        });
+    }
+    let triangles: Vec<[u32; 3]> = collapsed
+        .triangles
+        .iter()
+        .map(|t| t.map(|v| number[v as usize]))
+        .collect();
+    if triangles.iter().flatten().any(|&v| v == u32::MAX) {
+        return None;
+    }
+    let unit: Vec<Vec3> = normals.iter().map(|v| v.normalize()).collect();
+    // Turn each simulation point's normal the way the dense mesh's turns at its source.
+    let mut oriented: Vec<Vec3> = unit
+        .iter()
+        .zip(&source)
+        .map(|(&v, &j)| if v.dot(fine_n[j]) < 0.0 { -v } else { v })
+        .collect();
+    let mut all: Vec<Vec3> = positions.to_vec();
+    for &(p, normal) in &added {
+        all.push(p);
+        oriented.push(normal);
+    }
+    let mut mesh = mesh::SurfaceMesh::from_triangles(&all, &oriented, &triangles);
+    mesh.added = added;
+    oriented.truncate(n);
+    let graph = KnnIndex::build(positions).knn_graph(positions, config.k.min(n - 1));
+    let (mut net, _) = assemble(positions, unit, oriented, &graph, &[], mesh, config).ok()?;
+    net.report.collapsed_from_dense = true;
+    Some(net)
 }
 
 /// Rounds of refinement at most (see [`build_network_over`]).
@@ -502,6 +669,25 @@ fn build_once(
 
     // 2–3. One oriented mesh from the rings, holes closed.
     let mesh = mesh::build_mesh(positions, &oriented, &graph, candidates, &closable, dense);
+    let diameters: Vec<f32> = local.iter().map(|(s, _)| s.diameter).collect();
+    assemble(
+        positions, normals, oriented, &graph, &diameters, mesh, config,
+    )
+}
+
+/// The network on the `mesh` over the points (`normals` unit, `oriented` consistently, as the
+/// mesh's triangles turn around them): springs, masses, rings and the report. `graph` holds
+/// the given points' nearest neighbours, for stragglers; `diameters` their rings' d.
+fn assemble(
+    positions: &[Vec3],
+    normals: Vec<Vec3>,
+    oriented: Vec<Vec3>,
+    graph: &KnnGraph,
+    diameters: &[f32],
+    mesh: mesh::SurfaceMesh,
+    config: &NetworkConfig,
+) -> Result<(SpringNetwork, Holes), NetworkError> {
+    let n = positions.len();
     // Points that fill holes join the simulation points.
     let sampled = n;
     let (positions, oriented, normals) = if mesh.added.is_empty() {
@@ -599,12 +785,7 @@ fn build_once(
     let bend: Vec<Spring> = bend_pairs.into_iter().map(spring).collect();
 
     // Report.
-    let finite_d = || {
-        local
-            .iter()
-            .map(|(s, _)| s.diameter)
-            .filter(|d| d.is_finite())
-    };
+    let finite_d = || diameters.iter().copied().filter(|d| d.is_finite());
     let check = check::check(positions, &oriented, &triangles, &adjacency);
     let boundary_points = boundary.iter().filter(|b| **b).count();
     let isolated_points = mesh.wedges.iter().filter(|w| w.is_empty()).count();
@@ -634,6 +815,7 @@ fn build_once(
         inserted_points: mesh.stats.inserted,
         filling_points: mesh.added.len(),
         isolated_points,
+        collapsed_from_dense: false,
         fallback_springs,
         fallback_masses,
     };
