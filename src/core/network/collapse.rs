@@ -238,11 +238,16 @@ impl<'a> Mesh<'a> {
     fn best_target(&self, v: u32) -> Option<(f32, u32)> {
         let p = self.positions[v as usize];
         let boundary = self.on_boundary(v);
-        self.adjacent[v as usize]
+        // Nearest first: the first that may collapse is the one (a test costs the target's
+        // whole fan, and a kept point's grows as it absorbs its neighbours).
+        let mut by_length: Vec<(f32, u32)> = self.adjacent[v as usize]
             .iter()
             .map(|&u| (p.distance(self.positions[u as usize]), u))
-            .filter(|&(_, u)| self.can_collapse(v, u, boundary))
-            .min_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)))
+            .collect();
+        by_length.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        by_length
+            .into_iter()
+            .find(|&(_, u)| self.can_collapse(v, u, boundary))
     }
 
     /// Whether `v` (a boundary vertex when `boundary`) may collapse into `u` (see the
