@@ -170,9 +170,9 @@ pub struct NetworkReport {
     pub filling_points: usize,
     /// Points left without any triangle.
     pub isolated_points: usize,
-    /// Whether the network is the dense points' own network collapsed onto the simulation
-    /// points, because the simulation points' rings left more holes (see
-    /// [`build_network_over`]).
+    /// Whether the network is a fine mesh over the dense points (a mesh file's faces, or the
+    /// dense points' own network) collapsed onto the simulation points, because their rings
+    /// left more holes (see [`build_network_over`]).
     pub collapsed_from_dense: bool,
     /// Springs added to give stragglers [`MIN_STRETCH_SPRINGS`].
     pub fallback_springs: usize,
