@@ -33,7 +33,8 @@
 //! assert!(agree);
 //! ```
 
-#![warn(missing_docs)]
+#![warn(missing_docs, unused_qualifications, missing_debug_implementations)]
+#![deny(rustdoc::broken_intra_doc_links, rustdoc::private_intra_doc_links)]
 #![forbid(unsafe_code)]
 
 pub mod core;

@@ -559,12 +559,12 @@ impl Transfer {
     /// Bytes of precomputed data (neighbour indices and coefficients).
     pub fn coefficient_bytes(&self) -> usize {
         let indices = match &self.neighbours {
-            Neighbours::Narrow(n) => std::mem::size_of_val(n.as_slice()),
-            Neighbours::Wide(n) => std::mem::size_of_val(n.as_slice()),
+            Neighbours::Narrow(n) => size_of_val(n.as_slice()),
+            Neighbours::Wide(n) => size_of_val(n.as_slice()),
         };
         indices
-            + std::mem::size_of_val(self.coefficients.as_slice())
-            + std::mem::size_of_val(self.residual_rows.as_slice())
+            + size_of_val(self.coefficients.as_slice())
+            + size_of_val(self.residual_rows.as_slice())
     }
 
     /// Checks the displacement count and the output lengths.

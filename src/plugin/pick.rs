@@ -27,6 +27,7 @@ use super::grab::GrabMessage;
 use super::render::SurfelRender;
 
 /// Picking and grabbing surfaces with pointers.
+#[derive(Debug, Default)]
 pub struct SurfacePickingPlugin;
 
 impl Plugin for SurfacePickingPlugin {

@@ -855,7 +855,7 @@ const MAX_DISAGREEING_NORMALS: f64 = 0.05;
 fn oriented_normals(
     positions: &[Vec3],
     normals: &[Vec3],
-    graph: &crate::core::knn::KnnGraph,
+    graph: &KnnGraph,
 ) -> Result<Vec<Vec3>, NetworkError> {
     let n = positions.len();
     let near = graph.k().min(3);
@@ -968,7 +968,7 @@ fn final_ring(
         if mesh.has_wedge(i, a, b) || mesh.has_wedge(i, b, a) {
             None
         } else {
-            Some((by_angle[(r + 1) % m].0 - by_angle[r].0).rem_euclid(std::f32::consts::TAU))
+            Some((by_angle[(r + 1) % m].0 - by_angle[r].0).rem_euclid(TAU))
         }
     };
     let start = (0..m)
