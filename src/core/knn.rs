@@ -11,6 +11,10 @@ use rayon::prelude::*;
 /// Points per rayon task when building a graph.
 const QUERY_CHUNK: usize = 1024;
 
+/// Nearest neighbours averaged for a point's *local spacing* (the mean distance to them), the
+/// length scale the ring's hole test, resampling and the CLI's renderer measure in.
+pub const SPACING_NEIGHBOURS: usize = 6;
+
 /// A neighbour found by a query.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Neighbour {

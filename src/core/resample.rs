@@ -20,7 +20,7 @@ use std::collections::HashMap;
 use glam::{Vec3, Vec3A};
 use rayon::prelude::*;
 
-use crate::core::knn::KnnIndex;
+use crate::core::knn::{KnnIndex, SPACING_NEIGHBOURS};
 use crate::core::transfer::{Transfer, simd_displacements, tangent_frame};
 
 /// Default spacing growth that triggers resampling.
@@ -31,9 +31,6 @@ pub const DEFAULT_RESAMPLE_PASSES: usize = 3;
 
 /// Default cap on new points, per point there was before resampling.
 pub const DEFAULT_MAX_NEW_PER_POINT: f32 = 3.0;
-
-/// Neighbours averaged for a point's rest spacing.
-const SPACING_NEIGHBOURS: usize = 6;
 
 /// Existing points searched for a point's neighbour along the stretch.
 const SIDE_NEIGHBOURS: usize = 8;

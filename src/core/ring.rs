@@ -26,15 +26,14 @@ use glam::{DVec2, Vec3};
 use spade::handles::FixedVertexHandle;
 use spade::{DelaunayTriangulation, HasPosition, Point2, Triangulation};
 
+use crate::core::knn::SPACING_NEIGHBOURS;
+
 /// A fan triangle with a wider angle than this at the centre (150°) is a gap in the surface.
 pub const MAX_FAN_ANGLE: f64 = 5.0 * std::f64::consts::PI / 6.0;
 
 /// A fan triangle whose circumradius exceeds this many local spacings spans a hole (an
 /// alpha-shape test): its far side is across the hole, not on the surface.
 pub const MAX_CIRCUMRADIUS: f32 = 1.5;
-
-/// Neighbours averaged for the local spacing.
-const SPACING_NEIGHBOURS: usize = 6;
 
 /// Neighbours further out of the tangent plane than this (degrees) are not projected.
 pub const MAX_ELEVATION_DEG: f32 = 60.0;

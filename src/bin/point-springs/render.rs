@@ -4,7 +4,7 @@
 use std::path::Path;
 
 use bevy_point_springs::core::PointCloud;
-use bevy_point_springs::core::knn::KnnIndex;
+use bevy_point_springs::core::knn::{KnnIndex, SPACING_NEIGHBOURS};
 use glam::Vec3;
 use plotters::prelude::*;
 
@@ -12,8 +12,6 @@ use plotters::prelude::*;
 const MARGIN: f32 = 0.06;
 /// Disc radius as a multiple of the point's spacing (mean distance to its nearest few).
 const DISC_SPACING: f32 = 0.9;
-/// Neighbours averaged for a point's spacing.
-const SPACING_NEIGHBOURS: usize = 6;
 /// Smallest disc radius, pixels.
 const MIN_DISC_PX: f32 = 1.2;
 /// Light: ambient and diffuse shares.

@@ -88,8 +88,10 @@ pub use springs::{COINCIDENT_DISTANCE, SpringSpec};
 pub use stepper::{Model, Stepper};
 
 /// Largest magnitude a coordinate or velocity component may reach before the guard treats
-/// the state as runaway (squared distances must stay finite in `f32`).
-pub const STATE_LIMIT: f32 = 1.0e15;
+/// the state as runaway: the coordinate limit of every input
+/// ([`MAX_ABS_COORDINATE`](crate::core::cloud::MAX_ABS_COORDINATE)), so squared distances stay
+/// finite in `f32`.
+pub const STATE_LIMIT: f32 = crate::core::cloud::MAX_ABS_COORDINATE;
 
 /// Default fraction of the estimated stable step that an explicit sub-step may take.
 pub const DEFAULT_STABILITY_MARGIN: f32 = 0.9;
