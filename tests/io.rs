@@ -195,6 +195,23 @@ fn mesh_files_keep_their_faces_as_triangles() {
 }
 
 #[test]
+fn faces_that_are_not_triangles_of_the_cloud_are_typed_errors() {
+    use bevy_point_springs::core::cloud::CloudError;
+    let cloud = || PointCloud::new(vec![Vec3::ZERO, Vec3::X, Vec3::Y], None).unwrap();
+    for (face, index) in [([0, 1, 3], 1), ([0, 2, 2], 1)] {
+        let err = cloud().with_faces(vec![[0, 1, 2], face]).unwrap_err();
+        assert!(
+            matches!(err, CloudError::BadFace { index: i, points: 3, .. } if i == index),
+            "{err}"
+        );
+    }
+    assert_eq!(
+        cloud().with_faces(vec![[2, 0, 1]]).unwrap().faces(),
+        &[[2, 0, 1]]
+    );
+}
+
+#[test]
 fn face_normals_point_out_of_a_closed_mesh_whatever_its_winding() {
     use bevy_point_springs::core::normals::vertex_normals_from_faces;
     let corners = [Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::Z];

@@ -418,16 +418,7 @@ pub fn vertex_normals_from_faces(positions: &[Vec3], faces: &[[u32; 3]]) -> Opti
     if faces.is_empty() {
         return None;
     }
-    let mut sums = vec![Vec3::ZERO; positions.len()];
-    let mut volume = 0.0f64;
-    for &t in faces {
-        let [a, b, c] = t.map(|v| positions[v as usize]);
-        let normal = (b - a).cross(c - a);
-        volume += f64::from(a.dot(normal));
-        for v in t {
-            sums[v as usize] += normal;
-        }
-    }
+    let (sums, volume) = face_normal_sums(positions, faces);
     let normals: Vec<Vec3> = sums.into_iter().map(Vec3::normalize_or_zero).collect();
     if normals.contains(&Vec3::ZERO) {
         return None;
@@ -444,6 +435,22 @@ pub fn vertex_normals_from_faces(positions: &[Vec3], faces: &[[u32; 3]]) -> Opti
     } else {
         normals
     })
+}
+
+/// Each point's sum of its triangles' normals (each as long as twice its triangle's area),
+/// and six times the volume the triangles enclose (signed: positive when wound outwards).
+pub(crate) fn face_normal_sums(positions: &[Vec3], faces: &[[u32; 3]]) -> (Vec<Vec3>, f64) {
+    let mut sums = vec![Vec3::ZERO; positions.len()];
+    let mut volume = 0.0f64;
+    for &t in faces {
+        let [a, b, c] = t.map(|v| positions[v as usize]);
+        let normal = (b - a).cross(c - a);
+        volume += f64::from(a.dot(normal));
+        for v in t {
+            sums[v as usize] += normal;
+        }
+    }
+    (sums, volume)
 }
 
 #[cfg(test)]

@@ -46,18 +46,16 @@ pub(crate) fn manifold_normals(positions: &[Vec3], triangles: &[[u32; 3]]) -> Op
     if directed.windows(2).any(|w| w[0] == w[1]) {
         return None; // an edge used twice the same way: not oriented, or not a manifold
     }
-    let mut normals = vec![Vec3::ZERO; positions.len()];
-    for &t in triangles {
+    let flat = triangles.iter().any(|t| {
         let [a, b, c] = t.map(|v| positions[v as usize]);
         let normal = (b - a).cross(c - a);
-        if normal.length_squared() <= 0.0 || !normal.is_finite() {
-            return None;
-        }
-        for v in t {
-            normals[v as usize] += normal;
-        }
+        normal.length_squared() <= 0.0 || !normal.is_finite()
+    });
+    if flat {
+        return None;
     }
-    Some(normals.into_iter().map(Vec3::normalize_or_zero).collect())
+    let (sums, _) = crate::core::normals::face_normal_sums(positions, triangles);
+    Some(sums.into_iter().map(Vec3::normalize_or_zero).collect())
 }
 
 /// What [`collapse_onto`] left.
