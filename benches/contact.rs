@@ -17,9 +17,9 @@ use std::time::{Duration, Instant};
 
 use bevy::prelude::*;
 use bevy::time::TimeUpdateStrategy;
-use bevy_point_springs::core::io::read_cloud;
+use bevy_point_springs::core::cloud::io::read_cloud;
+use bevy_point_springs::core::cloud::shapes;
 use bevy_point_springs::core::pipeline::SurfaceConfig;
-use bevy_point_springs::core::shapes;
 use bevy_point_springs::core::simplify::SimplifyConfig;
 use bevy_point_springs::core::solver::hold_still;
 use bevy_point_springs::prelude::*;

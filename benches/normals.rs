@@ -6,11 +6,11 @@
 use std::hint::black_box;
 use std::time::Duration;
 
-use bevy_point_springs::core::knn::{KnnIndex, morton_order};
+use bevy_point_springs::core::cloud::knn::{KnnIndex, morton_order};
+use bevy_point_springs::core::cloud::shapes::fibonacci_sphere;
 use bevy_point_springs::core::normals::{
     DEFAULT_NORMAL_K, estimate_normals, orient_normals, pca_normals,
 };
-use bevy_point_springs::core::shapes::fibonacci_sphere;
 use criterion::{Criterion, criterion_group, criterion_main};
 
 const MILLION: usize = 1_000_000;

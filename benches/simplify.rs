@@ -7,8 +7,8 @@
 use std::hint::black_box;
 use std::time::Duration;
 
+use bevy_point_springs::core::cloud::shapes::fibonacci_sphere;
 use bevy_point_springs::core::network::{NetworkConfig, build_network};
-use bevy_point_springs::core::shapes::fibonacci_sphere;
 use bevy_point_springs::core::simplify::{SimplifyConfig, simplify};
 use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
 

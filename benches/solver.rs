@@ -6,10 +6,10 @@
 
 use std::hint::black_box;
 
+use bevy_point_springs::core::cloud::shapes::fibonacci_sphere;
+use bevy_point_springs::core::fixtures::cloth::{CLOTH_DT, CLOTH_SIZE, ReferenceCloth, cloth_grid};
 use bevy_point_springs::core::network::{NetworkConfig, build_network};
-use bevy_point_springs::core::shapes::fibonacci_sphere;
 use bevy_point_springs::core::simplify::{SimplifyConfig, simplify};
-use bevy_point_springs::core::solver::cloth::{CLOTH_DT, CLOTH_SIZE, ReferenceCloth, cloth_grid};
 use bevy_point_springs::core::solver::{
     Integrator, Solver, SolverConfig, SpringMaterial, SubstepPolicy,
 };

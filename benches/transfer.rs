@@ -9,9 +9,10 @@
 use std::hint::black_box;
 use std::time::Duration;
 
-use bevy_point_springs::core::shapes::fibonacci_sphere;
+use bevy_point_springs::core::cloud::shapes::fibonacci_sphere;
+use bevy_point_springs::core::fixtures::paper_transfer::literal_transfer;
 use bevy_point_springs::core::simplify::{SimplifyConfig, simplify};
-use bevy_point_springs::core::transfer::{Transfer, TransferConfig, literal_transfer};
+use bevy_point_springs::core::transfer::{Transfer, TransferConfig};
 use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
 use glam::Vec3;
 

@@ -23,7 +23,7 @@
 //! (a bevy_egui panel), `rapier` (bevy_rapier3d contacts), `cli` (the `point-springs` tool).
 //!
 //! ```
-//! use bevy_point_springs::core::{normals, shapes};
+//! use bevy_point_springs::core::{normals, cloud::shapes};
 //!
 //! let sphere = shapes::fibonacci_sphere(1000, 1.0);
 //! let (estimated, report) = normals::estimate_normals(sphere.positions(), 10).unwrap();
@@ -50,19 +50,19 @@ pub mod plugin;
 
 /// The most used types, for `use bevy_point_springs::prelude::*`.
 pub mod prelude {
-    pub use crate::core::io::{CloudFormat, LoadError, PlyEncoding, read_cloud, write_ply};
+    pub use crate::core::cloud::io::{CloudFormat, LoadError, PlyEncoding, read_cloud, write_ply};
     pub use crate::core::network::{NetworkConfig, SpringNetwork, build_network};
     pub use crate::core::normals::{NormalSource, ensure_normals, estimate_normals};
     pub use crate::core::pipeline::{
         DenseCloud, NormalsSpec, PrepareError, PreparedSurface, SurfaceConfig, prepare_surface,
     };
-    pub use crate::core::resample::ResampleConfig;
     pub use crate::core::scene::{Scene, SceneError, SceneRun};
     pub use crate::core::simplify::{SimplifyConfig, simplify, simplify_cloud};
     pub use crate::core::solver::{
         Anchor, AnchorId, DampingModel, Integrator, Solver, SolverConfig, SolverError,
         SpringMaterial, SpringSpec, SubstepPolicy,
     };
+    pub use crate::core::transfer::resample::ResampleConfig;
     pub use crate::core::transfer::{NormalUpdate, Transfer, TransferConfig, TransferError};
     pub use crate::core::{Aabb, PointCloud};
 

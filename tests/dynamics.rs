@@ -2,7 +2,7 @@
 
 use std::f64::consts::PI;
 
-use bevy_point_springs::core::solver::cloth::{
+use bevy_point_springs::core::fixtures::cloth::{
     CLOTH_DT, CLOTH_SIZE, CLOTH_STEPS, ReferenceCloth, cloth_grid, max_sag,
 };
 use bevy_point_springs::core::solver::{

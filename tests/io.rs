@@ -2,11 +2,11 @@
 
 use std::path::Path;
 
-use bevy_point_springs::core::io::{
+use bevy_point_springs::core::cloud::io::{
     CloudFormat, LoadErrorKind, PlyEncoding, read_cloud, read_cloud_from_bytes, write_ply,
     write_ply_to,
 };
-use bevy_point_springs::core::{PointCloud, shapes};
+use bevy_point_springs::core::{PointCloud, cloud::shapes};
 use glam::Vec3;
 use proptest::prelude::*;
 

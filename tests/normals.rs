@@ -2,12 +2,12 @@
 
 use std::path::Path;
 
-use bevy_point_springs::core::io::read_cloud;
-use bevy_point_springs::core::knn::KnnIndex;
+use bevy_point_springs::core::cloud::io::read_cloud;
+use bevy_point_springs::core::cloud::knn::KnnIndex;
 use bevy_point_springs::core::normals::{
     DEFAULT_NORMAL_K, NormalSource, ensure_normals, estimate_normals,
 };
-use bevy_point_springs::core::{PointCloud, shapes};
+use bevy_point_springs::core::{PointCloud, cloud::shapes};
 use glam::Vec3;
 
 fn asset(name: &str) -> std::path::PathBuf {

@@ -5,7 +5,7 @@
 
 use std::path::{Path, PathBuf};
 
-use bevy_point_springs::core::knn::KnnIndex;
+use bevy_point_springs::core::cloud::knn::KnnIndex;
 use bevy_point_springs::core::scene::{Deformed, Scene, SceneRun};
 use glam::Vec3;
 

@@ -4,7 +4,7 @@
 use std::f32::consts::PI;
 use std::path::Path;
 
-use bevy_point_springs::core::io::read_cloud;
+use bevy_point_springs::core::cloud::io::read_cloud;
 use bevy_point_springs::core::network::{
     DenseSupport, NetworkConfig, NetworkError, SpringNetwork, build_network, build_network_over,
 };
@@ -14,7 +14,7 @@ use bevy_point_springs::core::normals::{
 use bevy_point_springs::core::simplify::{
     Simplification, SimplifyConfig, SimplifyError, StopReason, simplify, simplify_cloud,
 };
-use bevy_point_springs::core::{PointCloud, shapes};
+use bevy_point_springs::core::{PointCloud, cloud::shapes};
 use glam::{DVec3, Vec3};
 use proptest::prelude::*;
 use spade::{DelaunayTriangulation, HasPosition, Point2, Triangulation};
@@ -96,7 +96,7 @@ fn network_at(cloud: &PointCloud, fraction: f64) -> SpringNetwork {
 fn noisy_sphere(n: usize, sigma: f32) -> PointCloud {
     let clean = shapes::fibonacci_sphere(n, 1.0);
     let spacing = clean
-        .spacing(&bevy_point_springs::core::knn::KnnIndex::build(
+        .spacing(&bevy_point_springs::core::cloud::knn::KnnIndex::build(
             clean.positions(),
         ))
         .unwrap()

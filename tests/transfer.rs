@@ -3,12 +3,12 @@
 
 use std::path::Path;
 
-use bevy_point_springs::core::io::read_cloud;
-use bevy_point_springs::core::shapes;
+use bevy_point_springs::core::cloud::io::read_cloud;
+use bevy_point_springs::core::cloud::shapes;
+use bevy_point_springs::core::fixtures::paper_transfer::literal_transfer;
 use bevy_point_springs::core::simplify::{SimplifyConfig, simplify};
 use bevy_point_springs::core::transfer::{
     MAX_SIMULATION_POINTS, NARROW_INDEX_LIMIT, Transfer, TransferConfig, TransferError,
-    literal_transfer,
 };
 use glam::{Mat3, Quat, Vec3};
 
@@ -240,14 +240,14 @@ fn bad_input_gets_typed_errors() {
 
 /// Mean distance from each point to its 6 nearest, averaged over the cloud.
 fn mean_spacing(points: &[Vec3]) -> f32 {
-    let index = bevy_point_springs::core::knn::KnnIndex::build(points);
+    let index = bevy_point_springs::core::cloud::knn::KnnIndex::build(points);
     let spacing = index.knn_graph(points, 6).mean_distances();
     spacing.iter().sum::<f32>() / points.len() as f32
 }
 
 #[test]
 fn resampling_fills_a_stretched_sheet() {
-    use bevy_point_springs::core::resample::{ResampleConfig, ResampleError, Resampler};
+    use bevy_point_springs::core::transfer::resample::{ResampleConfig, ResampleError, Resampler};
     let sheet = shapes::square_sheet(1.0, 0.02);
     let (dense, normals, sim) = surface(&sheet, 150);
     let mut transfer = Transfer::new(&dense, &normals, &sim, TransferConfig::default()).unwrap();

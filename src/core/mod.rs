@@ -1,31 +1,38 @@
 //! The pure core: every algorithm on plain slices, with no Bevy import.
 //!
-//! Data flows one way (see `DESIGN.md`):
-//! file ([`io`]) → [`cloud::PointCloud`] → [`normals`] (PCA over [`knn`] neighbourhoods,
-//! consistently oriented) → [`denoise`] (noisy scans: decide on local fits) → [`simplify`] (§3, tangent-plane Delaunay [`ring`]s) →
-//! [`network`] (§4.1–4.2 springs and masses) → [`solver`] (eq 2–6: forces, integrators,
-//! stability) → [`transfer`] (§5: precomputed least-squares coefficients, normals from
-//! the fitted gradient; [`resample`] fills stretched regions).
-//! [`scene`] describes a whole deformation in a RON file and runs it headless.
-//! [`contact`] turns rigid bodies touching simulation points into impulses both ways.
-//! [`shapes`] builds procedural test surfaces (sphere, hat, sheets); [`surfels`] the disc
-//! geometry the renderer draws.
+//! The folders are the method's stages, in the order data flows through them
+//! (`docs/ARCHITECTURE.md` draws it):
+//!
+//! 1. [`cloud`]: the dense surface, shared by every stage: [`PointCloud`] and its checks,
+//!    the file readers and writers ([`cloud::io`]), nearest-neighbour search
+//!    ([`cloud::knn`]), procedural surfaces ([`cloud::shapes`]) and the surfel discs the
+//!    renderer draws ([`cloud::surfels`]).
+//! 2. [`normals`]: PCA normals, consistently oriented; normals from a mesh file's faces;
+//!    [`normals::denoise`] decides on local fits for noisy scans.
+//! 3. [`simplify`]: §3, the tangent-plane Delaunay test
+//!    ([`simplify::tangent_delaunay`]) that picks the simulation points.
+//! 4. [`network`]: §4.1–4.2, one triangle network over the simulation points, its
+//!    stretch and bend springs and its masses.
+//! 5. [`solver`]: eq 2–6, forces, three integrators, stability guards, and
+//!    [`solver::contact`] for rigid bodies touching the surface.
+//! 6. [`transfer`]: §5, the motion carried back to every dense point with its normal;
+//!    [`transfer::resample`] fills regions the motion stretched.
+//!
+//! [`pipeline`] runs stages 1–4 and owns the state of 5–6 for one surface (the CLI, the
+//! benches and the plugin all call it); [`scene`] describes a whole deformation in a RON
+//! file and runs it headless. `fixtures` (hidden from these docs) holds what the tests
+//! and benches compare against: the benchmark cloth and the paper's literal transfer.
 
 pub mod cloud;
-pub mod contact;
-pub mod denoise;
-pub mod io;
-pub mod knn;
 pub mod network;
 pub mod normals;
 pub mod pipeline;
-pub mod resample;
-pub mod ring;
 pub mod scene;
-pub mod shapes;
 pub mod simplify;
 pub mod solver;
-pub mod surfels;
 pub mod transfer;
+
+#[doc(hidden)]
+pub mod fixtures;
 
 pub use cloud::{Aabb, CloudError, PointCloud};

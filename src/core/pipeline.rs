@@ -11,7 +11,7 @@
 //! ```
 //! use std::ops::ControlFlow;
 //! use bevy_point_springs::core::pipeline::{SurfaceConfig, prepare_surface};
-//! use bevy_point_springs::core::shapes::fibonacci_sphere;
+//! use bevy_point_springs::core::cloud::shapes::fibonacci_sphere;
 //! use bevy_point_springs::core::simplify::SimplifyConfig;
 //!
 //! let config = SurfaceConfig {
@@ -40,15 +40,14 @@ use crate::core::cloud::CloudError;
 use crate::core::network::{
     DenseSupport, NetworkConfig, NetworkError, SpringNetwork, build_network_over,
 };
+use crate::core::normals::pca_normals_of;
 use crate::core::normals::{DEFAULT_NORMAL_K, NormalSource, NormalsError, ensure_normals};
-use crate::core::resample::{ResampleConfig, ResampleError, ResampleReport, Resampler};
 use crate::core::simplify::{SimplifyConfig, SimplifyError, simplify_with_progress};
 use crate::core::solver::{
     PointState, Pressure, Solver, SolverConfig, SolverError, SpringMaterial,
 };
-use crate::core::transfer::{
-    FrameInput, NormalUpdate, Transfer, TransferConfig, TransferError, pca_normals_of,
-};
+use crate::core::transfer::resample::{ResampleConfig, ResampleError, ResampleReport, Resampler};
+use crate::core::transfer::{FrameInput, NormalUpdate, Transfer, TransferConfig, TransferError};
 
 /// Where the normals of the dense cloud come from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]

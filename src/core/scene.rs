@@ -54,17 +54,17 @@ use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
 use crate::core::PointCloud;
-use crate::core::io::{LoadError, read_cloud};
-use crate::core::knn::KnnIndex;
+use crate::core::cloud::io::{LoadError, read_cloud};
+use crate::core::cloud::knn::KnnIndex;
 use crate::core::pipeline::{
     NormalsSpec, PrepareError, PreparedSurface, Progress, SurfaceConfig, prepare_surface,
 };
-use crate::core::resample::{ResampleConfig, ResampleError, ResampleReport};
 use crate::core::simplify::SimplifyConfig;
 use crate::core::solver::{
     Anchor, AnchorId, Anchors, Masses, PointState, Solver, SolverConfig, SolverError,
     SpringMaterial, StepReport,
 };
+use crate::core::transfer::resample::{ResampleConfig, ResampleError, ResampleReport};
 use crate::core::transfer::{TransferConfig, TransferError};
 
 /// Most steps a scene may ask for.
@@ -637,12 +637,18 @@ mod tests {
         let text = ron::to_string(&s).unwrap();
         assert_eq!(Scene::from_ron(&text).unwrap(), s);
         // Noisy scans are decided on local fits unless a scene says otherwise.
-        assert_eq!(s.simplify.denoise, crate::core::denoise::Denoise::Auto);
+        assert_eq!(
+            s.simplify.denoise,
+            crate::core::normals::denoise::Denoise::Auto
+        );
         let off = Scene::from_ron(
             r#"(cloud: "a.ply", simplify: (target: Some(50), denoise: Off), dt: 0.01, steps: 10)"#,
         )
         .unwrap();
-        assert_eq!(off.simplify.denoise, crate::core::denoise::Denoise::Off);
+        assert_eq!(
+            off.simplify.denoise,
+            crate::core::normals::denoise::Denoise::Off
+        );
     }
 
     #[test]

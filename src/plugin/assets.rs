@@ -10,7 +10,7 @@ use bevy::asset::{AssetLoader, LoadContext};
 use bevy::prelude::*;
 
 use crate::core::PointCloud;
-use crate::core::io::{CloudFormat, LoadError, read_cloud_from_bytes};
+use crate::core::cloud::io::{CloudFormat, LoadError, read_cloud_from_bytes};
 use crate::core::scene::{MAX_SCENE_BYTES, Scene, SceneError};
 
 /// A point cloud loaded by the asset server.

@@ -28,7 +28,7 @@
 //!    none is left: a surface nothing is near costs one pass over its points;
 //! 3. finds the points inside each remaining collider's bounds, measures each point's
 //!    sphere against the collider's exact shape (parry's point projection) and hands the
-//!    proximities to [`crate::core::contact::resolve`];
+//!    proximities to [`crate::core::solver::contact::resolve`];
 //! 4. adds each impulse over the tick to the point's [`SurfaceForces`] and applies the
 //!    opposite impulse to the dynamic body at the contact point, so rapier's step and the
 //!    surface's step both see it in this tick.
@@ -46,11 +46,11 @@ use bevy_rapier3d::prelude::{CollisionGroups, TimestepMode, WriteRapierContext};
 use bevy_rapier3d::rapier::dynamics::RigidBodyHandle;
 use bevy_rapier3d::rapier::geometry::{ColliderHandle, InteractionGroups};
 
-use crate::core::contact::{
+use crate::core::network::SpringNetwork;
+use crate::core::solver::contact::{
     BodyState, ContactImpulse, ContactParams, DEFAULT_DEPTH_RECOVERY, DEFAULT_FRICTION,
     DEFAULT_RADIUS_SCALE, PointGrid, Proximity, point_radii, resolve, step_masses,
 };
-use crate::core::network::SpringNetwork;
 
 use super::PointSpringsSystems;
 use super::components::{

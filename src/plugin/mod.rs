@@ -9,7 +9,7 @@
 //! ```
 //! use bevy::prelude::*;
 //! use bevy_point_springs::prelude::*;
-//! use bevy_point_springs::core::shapes::fibonacci_sphere;
+//! use bevy_point_springs::core::cloud::shapes::fibonacci_sphere;
 //!
 //! /// Wind from +X, added to every simulation point each tick.
 //! fn wind(mut surfaces: Query<&mut SurfaceForces>) {

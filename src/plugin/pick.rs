@@ -20,7 +20,7 @@ use bevy::picking::prelude::{Pointer, Press};
 use bevy::platform::collections::HashMap;
 use bevy::prelude::*;
 
-use crate::core::surfels::{DEFAULT_SURFEL_SCALE, ray_cast_surfels, surfel_radii};
+use crate::core::cloud::surfels::{DEFAULT_SURFEL_SCALE, ray_cast_surfels, surfel_radii};
 
 use super::components::{DeformableSurface, DenseSurface};
 use super::grab::GrabMessage;

@@ -31,7 +31,7 @@ use bevy::shader::{ShaderDefVal, ShaderRef};
 
 use super::PointSpringsSystems;
 use super::components::{DenseSurface, SimulationPoints, SurfaceNetwork, SurfaceSprings};
-use crate::core::surfels::{DEFAULT_SURFEL_SCALE, SURFEL_BYTES, pack_surfels, surfel_radii};
+use crate::core::cloud::surfels::{DEFAULT_SURFEL_SCALE, SURFEL_BYTES, pack_surfels, surfel_radii};
 
 /// Corners of a surfel's hexagon.
 const CORNERS: usize = 6;
@@ -133,7 +133,7 @@ impl MaterialExtension for SurfelExtension {
 #[require(Visibility)]
 pub struct SurfelRender {
     /// Disc radius as a multiple of the distance to the point's
-    /// [`SURFEL_NEIGHBOURS`](crate::core::surfels::SURFEL_NEIGHBOURS)-th neighbour at rest.
+    /// [`SURFEL_NEIGHBOURS`](crate::core::cloud::surfels::SURFEL_NEIGHBOURS)-th neighbour at rest.
     pub radius_scale: f32,
     /// Surface colour (surfaces of one colour share a material).
     pub color: Color,

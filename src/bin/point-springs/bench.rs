@@ -4,15 +4,16 @@
 
 use std::time::Instant;
 
-use bevy_point_springs::core::shapes::fibonacci_sphere;
-use bevy_point_springs::core::simplify::{SimplifyConfig, simplify};
-use bevy_point_springs::core::solver::cloth::{
+use bevy_point_springs::core::cloud::shapes::fibonacci_sphere;
+use bevy_point_springs::core::fixtures::cloth::{
     CLOTH_DT, CLOTH_SIZE, CLOTH_STEPS, ReferenceCloth, cloth_grid, max_sag,
 };
+use bevy_point_springs::core::fixtures::paper_transfer::literal_transfer;
+use bevy_point_springs::core::normals::pca_normals_of;
+use bevy_point_springs::core::simplify::{SimplifyConfig, simplify};
 use bevy_point_springs::core::solver::{Integrator, Solver, SubstepPolicy};
 use bevy_point_springs::core::transfer::{
-    DEFAULT_BANDWIDTH, DEFAULT_TRANSFER_K, Transfer, TransferConfig, literal_transfer,
-    pca_normals_of,
+    DEFAULT_BANDWIDTH, DEFAULT_TRANSFER_K, Transfer, TransferConfig,
 };
 use clap::{Subcommand, ValueEnum};
 use glam::{Mat3, Vec3};

@@ -6,10 +6,10 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use bevy_point_springs::core::PointCloud;
-use bevy_point_springs::core::denoise::noise_level;
-use bevy_point_springs::core::io::CloudFormat;
-use bevy_point_springs::core::knn::KnnIndex;
+use bevy_point_springs::core::cloud::io::CloudFormat;
+use bevy_point_springs::core::cloud::knn::KnnIndex;
 use bevy_point_springs::core::network::{DenseSupport, NetworkConfig, build_network_over};
+use bevy_point_springs::core::normals::denoise::noise_level;
 use bevy_point_springs::core::normals::{DEFAULT_NORMAL_K, ensure_normals};
 use bevy_point_springs::core::simplify::{
     DEFAULT_SIMPLIFY_K, MIN_SIMULATION_POINTS, SimplifyConfig, simplify,

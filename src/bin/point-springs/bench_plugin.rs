@@ -17,15 +17,15 @@ use bevy::ecs::schedule::SingleThreadedExecutor;
 use bevy::prelude::*;
 use bevy::time::TimeUpdateStrategy;
 use bevy_point_springs::core::PointCloud;
-use bevy_point_springs::core::io::read_cloud;
-use bevy_point_springs::core::pipeline::{DenseCloud, PreparedSurface};
-use bevy_point_springs::core::scene::{Pull, Region, Scene, Timeline};
-use bevy_point_springs::core::shapes::fibonacci_sphere;
-use bevy_point_springs::core::simplify::SimplifyConfig;
-use bevy_point_springs::core::solver::{Integrator, SolverConfig, SpringMaterial};
-use bevy_point_springs::core::surfels::{
+use bevy_point_springs::core::cloud::io::read_cloud;
+use bevy_point_springs::core::cloud::shapes::fibonacci_sphere;
+use bevy_point_springs::core::cloud::surfels::{
     DEFAULT_SURFEL_SCALE, SURFEL_BYTES, pack_surfels, surfel_radii,
 };
+use bevy_point_springs::core::pipeline::{DenseCloud, PreparedSurface};
+use bevy_point_springs::core::scene::{Pull, Region, Scene, Timeline};
+use bevy_point_springs::core::simplify::SimplifyConfig;
+use bevy_point_springs::core::solver::{Integrator, SolverConfig, SpringMaterial};
 use bevy_point_springs::prelude::{
     DeformableSurface, DenseSurface, PointSpringsPlugin, PointSpringsSystems, SurfaceStatus,
 };

@@ -30,15 +30,15 @@ use std::process::ExitCode;
 use std::time::Instant;
 
 use bevy_point_springs::core::PointCloud;
-use bevy_point_springs::core::denoise::Denoise;
-use bevy_point_springs::core::io::{CloudFormat, PlyEncoding, read_cloud, write_ply};
-use bevy_point_springs::core::knn::KnnIndex;
+use bevy_point_springs::core::cloud::io::{CloudFormat, PlyEncoding, read_cloud, write_ply};
+use bevy_point_springs::core::cloud::knn::KnnIndex;
+use bevy_point_springs::core::cloud::shapes::{self, HAT_DEFAULT_RIM, PAPER_SPHERE_POINTS};
 use bevy_point_springs::core::network::{
     DEFAULT_DENSITY, DenseSupport, NetworkConfig, build_network_over,
 };
+use bevy_point_springs::core::normals::denoise::Denoise;
 use bevy_point_springs::core::normals::{DEFAULT_NORMAL_K, NormalSource, ensure_normals};
 use bevy_point_springs::core::scene::Scene;
-use bevy_point_springs::core::shapes::{self, HAT_DEFAULT_RIM, PAPER_SPHERE_POINTS};
 use bevy_point_springs::core::simplify::{
     DEFAULT_SIMPLIFY_K, SimplifyConfig, SimplifyProgress, StopReason, simplify_with_progress,
 };

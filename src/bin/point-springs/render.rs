@@ -4,7 +4,7 @@
 use std::path::Path;
 
 use bevy_point_springs::core::PointCloud;
-use bevy_point_springs::core::knn::{KnnIndex, SPACING_NEIGHBOURS};
+use bevy_point_springs::core::cloud::knn::{KnnIndex, SPACING_NEIGHBOURS};
 use glam::Vec3;
 use plotters::prelude::*;
 

@@ -54,7 +54,7 @@ use std::f32::consts::TAU;
 use glam::Vec3;
 
 use super::DenseSupport;
-use crate::core::knn::KnnGraph;
+use crate::core::cloud::knn::KnnGraph;
 use crate::core::simplify::MAX_SIMPLIFY_K;
 
 pub mod fill;

@@ -1,6 +1,6 @@
 //! The spring network on the simulation points (the paper's §4.1–4.2).
 //!
-//! 1. Each simulation point's [local Delaunay ring](crate::core::ring) among its k nearest
+//! 1. Each simulation point's [local Delaunay ring](crate::core::simplify::tangent_delaunay) among its k nearest
 //!    simulation points, counter-clockwise around its normal (the paper's construction).
 //! 2. **One surface.** Local triangulations need not agree, and where they disagree the union
 //!    of their edges has holes. The rings' faces are voted into one oriented triangle mesh,
@@ -32,9 +32,9 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use crate::core::cloud::first_invalid_point;
-use crate::core::knn::{KnnGraph, KnnIndex};
+use crate::core::cloud::knn::{KnnGraph, KnnIndex};
 use crate::core::normals::orient_normals;
-use crate::core::ring::{RingBuilder, RingShape};
+use crate::core::simplify::tangent_delaunay::{RingBuilder, RingShape};
 
 mod check;
 mod collapse;
@@ -240,7 +240,7 @@ pub struct DenseSupport<'a> {
     index: KnnIndex,
     reach: f32,
     /// Neighbours of the local plane a dense point is projected on before it becomes a
-    /// simulation point, when the simulation points were (see [`Denoise`](crate::core::denoise::Denoise)).
+    /// simulation point, when the simulation points were (see [`Denoise`](crate::core::normals::denoise::Denoise)).
     fit_k: Option<usize>,
     /// The triangles of a mesh over the dense points, when the file had one.
     triangles: &'a [[u32; 3]],
@@ -256,7 +256,7 @@ pub const SUPPORT_NEIGHBOURS: usize = 8;
 
 impl<'a> DenseSupport<'a> {
     /// Indexes the dense `positions` (with unit `normals`, as many), whose noise level (in
-    /// spacings, from [`noise_level`](crate::core::denoise::noise_level)) is `noise`; `fitted`
+    /// spacings, from [`noise_level`](crate::core::normals::denoise::noise_level)) is `noise`; `fitted`
     /// when the simulation points were projected on local fits
     /// ([`Simplification::projected`](crate::core::simplify::Simplification::projected)), so
     /// that points taken from the dense cloud are projected alike.
@@ -266,7 +266,7 @@ impl<'a> DenseSupport<'a> {
             normals,
             index: KnnIndex::build(positions),
             reach: SUPPORT_SPACINGS + 3.0 * noise.max(0.0),
-            fit_k: fitted.then(|| crate::core::denoise::fit_k(noise)),
+            fit_k: fitted.then(|| crate::core::normals::denoise::fit_k(noise)),
             triangles: &[],
         }
     }
@@ -317,7 +317,7 @@ impl<'a> DenseSupport<'a> {
     pub(crate) fn fitted_point(&self, i: u32) -> (Vec3, Vec3) {
         let (p, n) = self.point(i);
         match self.fit_k {
-            Some(k) => crate::core::denoise::project_on_fit(
+            Some(k) => crate::core::normals::denoise::project_on_fit(
                 p,
                 n,
                 self.positions,

@@ -37,7 +37,7 @@
 //!
 //! ```
 //! use bevy_point_springs::core::network::{NetworkConfig, build_network};
-//! use bevy_point_springs::core::shapes::fibonacci_sphere;
+//! use bevy_point_springs::core::cloud::shapes::fibonacci_sphere;
 //! use bevy_point_springs::core::simplify::{SimplifyConfig, simplify};
 //! use bevy_point_springs::prelude::*;
 //! use glam::Vec3;
@@ -76,7 +76,7 @@ mod parts;
 mod springs;
 mod stepper;
 
-pub mod cloth;
+pub mod contact;
 
 use glam::Vec3;
 

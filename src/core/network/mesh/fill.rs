@@ -20,7 +20,7 @@ use std::f32::consts::TAU;
 use glam::Vec3;
 
 use super::{Builder, MAX_CLOSING_ANGLE, STEEP_COS, Wedge};
-use crate::core::knn::KnnGraph;
+use crate::core::cloud::knn::KnnGraph;
 
 /// Dense points tried as a hole's centre around each probe.
 const CENTRE_CANDIDATES: usize = 48;
@@ -255,7 +255,7 @@ mod tests {
     use glam::Vec3;
 
     use super::super::{Builder, MAX_CLOSING_ANGLE, SurfaceMesh};
-    use crate::core::knn::{KnnGraph, KnnIndex};
+    use crate::core::cloud::knn::{KnnGraph, KnnIndex};
     use crate::core::network::DenseSupport;
 
     /// Points of a capsule: a cylinder of radius 1 from z = -2 to z = 0 with hemispherical

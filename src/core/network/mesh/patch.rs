@@ -178,7 +178,7 @@ mod tests {
     use glam::Vec3;
 
     use super::super::{Builder, MAX_CLOSING_ANGLE, SurfaceMesh};
-    use crate::core::knn::{KnnGraph, KnnIndex};
+    use crate::core::cloud::knn::{KnnGraph, KnnIndex};
 
     /// A flat square of 5 × 5 points in the plane z = 0 (normals +z), all triangles but those
     /// of the centre cell's two halves.

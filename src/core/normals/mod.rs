@@ -13,11 +13,13 @@
 //!   direction of its dominant axis.
 //! * [`ensure_normals`]: keeps a cloud's own normals when they are usable, estimates otherwise.
 
+pub mod denoise;
+
 use glam::{DMat3, DVec3, Vec3};
 use rayon::prelude::*;
 
 use crate::core::cloud::PointCloud;
-use crate::core::knn::{KnnGraph, KnnIndex, morton_order};
+use crate::core::cloud::knn::{KnnGraph, KnnIndex, morton_order};
 
 /// Default neighbourhood size for PCA normals (the paper's k lies in 10–20 for simplification;
 /// 10 neighbours give stable normals on evenly sampled surfaces at the lowest cost).
@@ -451,6 +453,20 @@ pub(crate) fn face_normal_sums(positions: &[Vec3], faces: &[[u32; 3]]) -> (Vec<V
         }
     }
     (sums, volume)
+}
+
+/// Normals of `positions` by PCA over their `k` nearest neighbours, each turned to agree
+/// with the matching `reference` normal (the paper's way of updating normals).
+pub fn pca_normals_of(positions: &[Vec3], reference: &[Vec3], k: usize) -> Vec<Vec3> {
+    let index = KnnIndex::build(positions);
+    let graph = index.knn_graph(positions, k);
+    let (mut normals, _) = pca_normals(positions, &graph);
+    normals.par_iter_mut().zip(reference).for_each(|(n, r)| {
+        if n.dot(*r) < 0.0 {
+            *n = -*n;
+        }
+    });
+    normals
 }
 
 #[cfg(test)]

@@ -1,7 +1,7 @@
 //! Tangent-plane Delaunay simplification (the paper's §3): from a dense cloud to the
 //! *simulation points*.
 //!
-//! Every point gets its region R from the [local Delaunay ring](crate::core::ring) of its k
+//! Every point gets its region R from the [local Delaunay ring](crate::core::simplify::tangent_delaunay) of its k
 //! nearest remaining neighbours; d is the diameter of R. The point with the smallest d is
 //! removed, repeatedly, until a target count is reached or every d exceeds a threshold (either
 //! rule, or both: the first one met stops). Removing a point changes the neighbourhood of the
@@ -32,6 +32,8 @@
 //!
 //! [kiddo]: https://crates.io/crates/kiddo
 
+pub mod tangent_delaunay;
+
 use std::borrow::Cow;
 use std::cmp::Reverse;
 use std::collections::BinaryHeap;
@@ -42,10 +44,10 @@ use glam::Vec3;
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use rayon::prelude::*;
 
+use crate::core::cloud::knn::morton_order;
 use crate::core::cloud::{PointCloud, first_invalid_point};
-use crate::core::denoise::{Denoise, decision_surface};
-use crate::core::knn::morton_order;
-use crate::core::ring::{RingBuilder, RingShape};
+use crate::core::normals::denoise::{Denoise, decision_surface};
+use crate::core::simplify::tangent_delaunay::{RingBuilder, RingShape};
 
 /// Default neighbourhood size (the paper recommends 10–20).
 pub const DEFAULT_SIMPLIFY_K: usize = 12;
@@ -87,7 +89,7 @@ pub struct SimplifyConfig {
     /// Stop when every remaining point's d is at least this (the paper's threshold).
     pub max_diameter: Option<f32>,
     /// Whether to decide on the points projected on local fits (a noisy scan; see
-    /// [`denoise`](crate::core::denoise)). By default, when the cloud measures noisy.
+    /// [`denoise`](crate::core::normals::denoise)). By default, when the cloud measures noisy.
     pub denoise: Denoise,
 }
 
@@ -202,7 +204,7 @@ pub struct Simplification {
     pub evaluations: usize,
     /// What stopped the removal.
     pub stop: StopReason,
-    /// The cloud's noise level (see [`denoise::noise_level`](crate::core::denoise::noise_level));
+    /// The cloud's noise level (see [`denoise::noise_level`](crate::core::normals::denoise::noise_level));
     /// 0 when not measured ([`Denoise::Off`]).
     pub noise_level: f32,
     /// When the decisions were made on the points projected on local fits: the kept points'

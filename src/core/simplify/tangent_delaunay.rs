@@ -26,7 +26,7 @@ use glam::{DVec2, Vec3};
 use spade::handles::FixedVertexHandle;
 use spade::{DelaunayTriangulation, HasPosition, Point2, Triangulation};
 
-use crate::core::knn::SPACING_NEIGHBOURS;
+use crate::core::cloud::knn::SPACING_NEIGHBOURS;
 
 /// A fan triangle with a wider angle than this at the centre (150°) is a gap in the surface.
 pub const MAX_FAN_ANGLE: f64 = 5.0 * std::f64::consts::PI / 6.0;

@@ -39,12 +39,13 @@
 //!
 //! **Normals.** The deformed tangents are t₁ + a₁ and t₂ + a₂ (a₁, a₂ the fitted
 //! derivatives of the displacement), the deformed normal their cross product: exact for
-//! any affine motion, and no k-NN search or PCA per frame. [`pca_normals_of`] recomputes
-//! normals the paper's way, for comparison; [`literal_transfer`] is the paper's whole
-//! per-frame method, kept as the baseline the precomputed transfer is measured against.
+//! any affine motion, and no k-NN search or PCA per frame.
+//! [`pca_normals_of`](crate::core::normals::pca_normals_of) recomputes normals the paper's
+//! way, for comparison; `fixtures::paper_transfer` is the paper's whole per-frame method,
+//! kept as the baseline the precomputed transfer is measured against.
 //!
 //! ```
-//! use bevy_point_springs::core::shapes::fibonacci_sphere;
+//! use bevy_point_springs::core::cloud::shapes::fibonacci_sphere;
 //! use bevy_point_springs::core::transfer::{Transfer, TransferConfig};
 //! use glam::{Quat, Vec3};
 //!
@@ -64,12 +65,13 @@
 //! }
 //! ```
 
+pub mod resample;
+
 use glam::{DVec3, Vec3, Vec3A};
 use rayon::prelude::*;
 
 use crate::core::cloud::first_invalid_point;
-use crate::core::knn::KnnIndex;
-use crate::core::normals::pca_normals;
+use crate::core::cloud::knn::KnnIndex;
 
 /// Default number of simulation points each dense point follows (`point-springs bench
 /// transfer` measures k against error: 10 is as accurate as 12 and a sixth cheaper per frame).
@@ -1127,82 +1129,6 @@ fn fit_point(
     Fit::Regularised
 }
 
-/// Normals of `positions` by PCA over their `k` nearest neighbours, each turned to agree
-/// with the matching `reference` normal (the paper's way of updating normals).
-pub fn pca_normals_of(positions: &[Vec3], reference: &[Vec3], k: usize) -> Vec<Vec3> {
-    let index = KnnIndex::build(positions);
-    let graph = index.knn_graph(positions, k);
-    let (mut normals, _) = pca_normals(positions, &graph);
-    normals.par_iter_mut().zip(reference).for_each(|(n, r)| {
-        if n.dot(*r) < 0.0 {
-            *n = -*n;
-        }
-    });
-    normals
-}
-
-/// The paper's per-frame method, literally: for every dense point a k-NN search among the
-/// simulation points, the 3 × 3 plane fit of eq 7–12 solved for the displacement, then
-/// normals by PCA over the deformed dense cloud (`normal_k` neighbours), oriented like the
-/// rest normals. Parallel, like [`Transfer::apply`], so the two compare fairly.
-pub fn literal_transfer(
-    rest: &[Vec3],
-    normals: &[Vec3],
-    sim_rest: &[Vec3],
-    displacements: &[Vec3],
-    config: TransferConfig,
-    normal_k: usize,
-) -> (Vec<Vec3>, Vec<Vec3>) {
-    let index = KnnIndex::build(sim_rest);
-    let k = config.k.min(sim_rest.len());
-    let h_scale = f64::from(config.bandwidth);
-    let positions: Vec<Vec3> = rest
-        .par_iter()
-        .zip(normals)
-        .map(|(&p, &n)| {
-            let (t1, t2) = tangent_frame(n.normalize_or_zero());
-            let found = index.nearest(p, k);
-            let local: Vec<(f64, f64)> = found
-                .iter()
-                .map(|nb| {
-                    let d = sim_rest[nb.index as usize] - p;
-                    (f64::from(d.dot(t1)), f64::from(d.dot(t2)))
-                })
-                .collect();
-            let reach = found
-                .iter()
-                .map(|nb| f64::from(nb.dist2).sqrt())
-                .fold(0.0, f64::max);
-            let h = if reach > 0.0 { h_scale * reach } else { 1.0 };
-            // A = PᵀWP, B u = PᵀW u for the three components at once.
-            let mut a = [[0.0f64; 3]; 3];
-            let mut b = [DVec3::ZERO; 3];
-            for (nb, &(x, y)) in found.iter().zip(&local) {
-                let w = (-(x * x + y * y) / (h * h)).exp();
-                let phi = [1.0, x, y];
-                let u = displacements[nb.index as usize].as_dvec3();
-                for r in 0..3 {
-                    for s in 0..3 {
-                        a[r][s] += w * phi[r] * phi[s];
-                    }
-                    b[r] += w * phi[r] * u;
-                }
-            }
-            let m = glam::DMat3::from_cols_array_2d(&a);
-            let u = if m.determinant().abs() > f64::EPSILON * a[0][0].powi(3) {
-                // a₀ = e₀ᵀA⁻¹B u (A is symmetric: row 0 of A⁻¹ is its column 0).
-                let inv = m.inverse();
-                inv.x_axis.x * b[0] + inv.y_axis.x * b[1] + inv.z_axis.x * b[2]
-            } else {
-                b[0] / a[0][0].max(f64::MIN_POSITIVE)
-            };
-            p + u.as_vec3()
-        })
-        .collect();
-    let normals = pca_normals_of(&positions, normals, normal_k);
-    (positions, normals)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -1259,10 +1185,10 @@ mod tests {
             let p = cloud.positions().iter().map(|&p| p + offset).collect();
             (p, cloud.normals().unwrap().to_vec())
         };
-        let (dense, normals) = moved(crate::core::shapes::fibonacci_sphere(3000, 1.0));
-        let (sim, _) = moved(crate::core::shapes::fibonacci_sphere(300, 1.0));
-        let (sheet, sheet_normals) = moved(crate::core::shapes::square_sheet(2.0, 0.05));
-        let (sheet_sim, _) = moved(crate::core::shapes::square_sheet(2.0, 0.2));
+        let (dense, normals) = moved(crate::core::cloud::shapes::fibonacci_sphere(3000, 1.0));
+        let (sim, _) = moved(crate::core::cloud::shapes::fibonacci_sphere(300, 1.0));
+        let (sheet, sheet_normals) = moved(crate::core::cloud::shapes::square_sheet(2.0, 0.05));
+        let (sheet_sim, _) = moved(crate::core::cloud::shapes::square_sheet(2.0, 0.2));
         let wave = |x: Vec3| {
             let q = x - offset;
             Vec3::new((2.0 * q.y).sin(), q.x * q.z, (3.0 * q.x).cos() * q.y) * 0.1

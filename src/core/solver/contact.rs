@@ -29,7 +29,7 @@
 
 use glam::{Mat3, Vec3};
 
-use super::network::SpringNetwork;
+use crate::core::network::SpringNetwork;
 
 /// Default Coulomb friction coefficient μ between a surface and a body.
 pub const DEFAULT_FRICTION: f32 = 0.5;
@@ -548,7 +548,7 @@ mod tests {
 
     #[test]
     fn radii_are_half_the_local_spacing() {
-        let cloud = crate::core::shapes::fibonacci_sphere(2000, 1.0);
+        let cloud = crate::core::cloud::shapes::fibonacci_sphere(2000, 1.0);
         let network = crate::core::network::build_network(
             cloud.positions(),
             cloud.normals().unwrap(),
@@ -564,7 +564,7 @@ mod tests {
 
     #[test]
     fn the_grid_finds_every_point_in_a_box_and_few_outside() {
-        let cloud = crate::core::shapes::fibonacci_sphere(5000, 1.0);
+        let cloud = crate::core::cloud::shapes::fibonacci_sphere(5000, 1.0);
         let points = cloud.positions();
         let grid = PointGrid::new(points, 0.1);
         for (min, max) in [

@@ -27,7 +27,7 @@ use std::borrow::Cow;
 use glam::{DMat3, DVec3, Vec3};
 use rayon::prelude::*;
 
-use crate::core::knn::KnnIndex;
+use crate::core::cloud::knn::KnnIndex;
 use crate::core::normals::smallest_eigenvector;
 
 /// Neighbours of each sampled point for the noise measure.
@@ -263,7 +263,7 @@ fn plane_fit(origin: Vec3, points: &[Vec3]) -> Option<(Vec3, Vec3)> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::core::shapes;
+    use crate::core::cloud::shapes;
 
     #[test]
     fn noise_level_follows_the_noise() {

@@ -1,8 +1,13 @@
 //! [`PointCloud`]: positions with optional per-point normals, and its summary statistics.
 
+pub mod io;
+pub mod knn;
+pub mod shapes;
+pub mod surfels;
+
 use glam::Vec3;
 
-use crate::core::knn::KnnIndex;
+use crate::core::cloud::knn::KnnIndex;
 
 /// Largest absolute coordinate accepted anywhere in the crate.
 ///

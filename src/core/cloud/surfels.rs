@@ -7,7 +7,7 @@
 
 use glam::Vec3;
 
-use crate::core::knn::KnnIndex;
+use crate::core::cloud::knn::KnnIndex;
 
 /// Neighbours whose farthest sets a surfel's size.
 pub const SURFEL_NEIGHBOURS: usize = 6;

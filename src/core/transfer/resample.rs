@@ -20,7 +20,7 @@ use std::collections::HashMap;
 use glam::{Vec3, Vec3A};
 use rayon::prelude::*;
 
-use crate::core::knn::{KnnIndex, SPACING_NEIGHBOURS};
+use crate::core::cloud::knn::{KnnIndex, SPACING_NEIGHBOURS};
 use crate::core::transfer::{Transfer, simd_displacements, tangent_frame};
 
 /// Default spacing growth that triggers resampling.
