@@ -28,7 +28,11 @@ pub(super) fn collapsed_from_dense(
     if dense_n.len() != dense_p.len() {
         return None;
     }
-    let (fine_p, mut fine_n, mut fine_t) = fine_mesh(config, dense, holes)?;
+    let FineMesh {
+        positions: fine_p,
+        normals: mut fine_n,
+        triangles: mut fine_t,
+    } = fine_mesh(config, dense, holes)?;
     let (keep, source) = dense_sources(positions, dense, fine_p.len())?;
     // Turn the fine mesh the way most simulation points' normals face.
     let against = source
@@ -103,17 +107,28 @@ pub(super) fn collapsed_from_dense(
     Some(net)
 }
 
+/// A fine mesh over the dense points: positions, unit normals, triangles.
+struct FineMesh<'a> {
+    positions: Cow<'a, [Vec3]>,
+    normals: Vec<Vec3>,
+    triangles: Vec<[u32; 3]>,
+}
+
 /// The fine mesh over the dense points: the file's faces when they make an oriented
 /// manifold, else the dense points' own network when it can be built and leaves no more
-/// holes than the simulation points' rings left. Positions, unit normals, triangles.
+/// holes than the simulation points' rings left.
 fn fine_mesh<'a>(
     config: &NetworkConfig,
     dense: &'a DenseSupport,
     holes: &Holes,
-) -> Option<(Cow<'a, [Vec3]>, Vec<Vec3>, Vec<[u32; 3]>)> {
+) -> Option<FineMesh<'a>> {
     let (dense_p, dense_n) = (dense.positions, dense.normals);
     if let Some(normals) = collapse::manifold_normals(dense_p, dense.triangles) {
-        return Some((Cow::Borrowed(dense_p), normals, dense.triangles.to_vec()));
+        return Some(FineMesh {
+            positions: Cow::Borrowed(dense_p),
+            normals,
+            triangles: dense.triangles.to_vec(),
+        });
     }
     // On a noisy cloud (decided on local fits) the dense points' own rings are far worse
     // than the coarse ones (the CGAL sphere scan: 109 loops at its 21 002 points, projected
@@ -125,11 +140,11 @@ fn fine_mesh<'a>(
     if fine_holes.loops.len() > holes.loops.len() {
         return None;
     }
-    Some((
-        Cow::Owned(fine.positions),
-        fine_holes.normals,
-        fine.triangles,
-    ))
+    Some(FineMesh {
+        positions: Cow::Owned(fine.positions),
+        normals: fine_holes.normals,
+        triangles: fine.triangles,
+    })
 }
 
 /// Which of the fine mesh's `fine_len` vertices are kept (the simulation points), and each

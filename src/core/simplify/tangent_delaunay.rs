@@ -144,47 +144,14 @@ impl RingBuilder {
             shape.coincident = !neighbours.is_empty() && scale == 0.0;
             return shape;
         }
-        let (t1, t2) = normal.any_orthonormal_pair();
-        let max_elevation = MAX_ELEVATION_DEG.to_radians().tan();
-        let coincident2 = (COINCIDENT_REL * scale).powi(2);
-        self.kept.clear();
-        for (slot, p) in neighbours.iter().enumerate() {
-            let v = *p - centre;
-            if v.length_squared() <= coincident2 {
-                shape.coincident = true;
-                continue;
-            }
-            let (x, y) = (v.dot(t1), v.dot(t2));
-            let tangential = x.hypot(y);
-            if v.dot(normal).abs() > max_elevation * tangential {
-                continue;
-            }
-            let q = DVec2::new(f64::from(x), f64::from(y)) / f64::from(scale);
-            if self.kept.iter().any(|&(_, k)| k == q) {
-                continue;
-            }
-            self.kept.push((slot as u32, q));
-        }
+        shape.coincident = self.project(centre, normal, neighbours, scale);
         if self.kept.len() < 2 {
             return shape;
         }
         shape.surrounded = self.surrounds();
-        self.tri.clear();
-        let centre_handle = match self.tri.insert(Projected {
-            pos: Point2::new(0.0, 0.0),
-            slot: CENTRE,
-        }) {
-            Ok(h) => h,
-            Err(_) => return shape,
+        let Some(centre_handle) = self.triangulate() else {
+            return shape;
         };
-        for &(slot, q) in &self.kept {
-            // Coordinates are O(1) after scaling; an insertion error means a value too small
-            // to represent, i.e. a point at the centre, which was skipped above.
-            let _ = self.tri.insert(Projected {
-                pos: Point2::new(q.x, q.y),
-                slot,
-            });
-        }
         // Local spacing: the mean distance to the nearest few neighbours.
         let near = neighbours.len().min(SPACING_NEIGHBOURS);
         let spacing = neighbours[..near]
@@ -203,6 +170,71 @@ impl RingBuilder {
         }
         shape.degenerate = false;
         shape.open = surface_faces < n;
+        let (area, d2) = self.measure_region(shape.open);
+        let s = f64::from(scale);
+        shape.diameter = (d2.sqrt() * s) as f32;
+        shape.area = (area * s * s) as f32;
+        if let Some(ring) = ring {
+            self.write_ring(shape.open, ring);
+        }
+        shape
+    }
+
+    /// Projects the `neighbours` onto the tangent plane at `centre` (scaled by `scale`) into
+    /// `self.kept`, skipping those too steep above or below it and repeats. Returns whether
+    /// one coincides with the centre.
+    fn project(&mut self, centre: Vec3, normal: Vec3, neighbours: &[Vec3], scale: f32) -> bool {
+        let mut coincident = false;
+        let (t1, t2) = normal.any_orthonormal_pair();
+        let max_elevation = MAX_ELEVATION_DEG.to_radians().tan();
+        let coincident2 = (COINCIDENT_REL * scale).powi(2);
+        self.kept.clear();
+        for (slot, p) in neighbours.iter().enumerate() {
+            let v = *p - centre;
+            if v.length_squared() <= coincident2 {
+                coincident = true;
+                continue;
+            }
+            let (x, y) = (v.dot(t1), v.dot(t2));
+            let tangential = x.hypot(y);
+            if v.dot(normal).abs() > max_elevation * tangential {
+                continue;
+            }
+            let q = DVec2::new(f64::from(x), f64::from(y)) / f64::from(scale);
+            if self.kept.iter().any(|&(_, k)| k == q) {
+                continue;
+            }
+            self.kept.push((slot as u32, q));
+        }
+        coincident
+    }
+
+    /// The Delaunay triangulation of the centre and `self.kept`; the centre's handle, or
+    /// `None` when it cannot be inserted.
+    fn triangulate(&mut self) -> Option<FixedVertexHandle> {
+        self.tri.clear();
+        let centre_handle = match self.tri.insert(Projected {
+            pos: Point2::new(0.0, 0.0),
+            slot: CENTRE,
+        }) {
+            Ok(h) => h,
+            Err(_) => return None,
+        };
+        for &(slot, q) in &self.kept {
+            // Coordinates are O(1) after scaling; an insertion error means a value too small
+            // to represent, i.e. a point at the centre, which was skipped above.
+            let _ = self.tri.insert(Projected {
+                pos: Point2::new(q.x, q.y),
+                slot,
+            });
+        }
+        Some(centre_handle)
+    }
+
+    /// The area of the region R the fan's surface faces cover, and its squared diameter
+    /// (an `open` region's: the disc it would span), both in scaled coordinates.
+    fn measure_region(&mut self, open: bool) -> (f64, f64) {
+        let n = self.fan.len();
         // Area and vertices of R.
         let mut area = 0.0f64;
         self.region.clear();
@@ -219,7 +251,7 @@ impl RingBuilder {
             }
         }
         let mut d2 = 0.0f64;
-        if shape.open {
+        if open {
             // An open region is a part of the disc it would span if the surface went on: its
             // diameter is that disc's (twice its reach), so corners and rims rank like the
             // interior instead of going first.
@@ -233,32 +265,33 @@ impl RingBuilder {
                 }
             }
         }
-        let s = f64::from(scale);
-        shape.diameter = (d2.sqrt() * s) as f32;
-        shape.area = (area * s * s) as f32;
-        if let Some(ring) = ring {
-            // Start after the widest gap (any start for a closed ring).
-            let start = if shape.open {
-                let widest = (0..n)
-                    .filter(|&r| !self.fan[r].2)
-                    .max_by(|&r, &q| {
-                        let gap = |r: usize| fan_angle(self.fan[r].1, self.fan[(r + 1) % n].1);
-                        gap(r).total_cmp(&gap(q)).then(q.cmp(&r))
-                    })
-                    .unwrap_or(0);
-                (widest + 1) % n
-            } else {
-                0
-            };
-            // Vertices that only border gaps are not neighbours on the surface.
-            ring.extend(
-                (0..n)
-                    .map(|r| (start + r) % n)
-                    .filter(|&r| self.fan[r].2 || self.fan[(r + n - 1) % n].2)
-                    .map(|r| (self.fan[r].0, self.fan[r].2)),
-            );
-        }
-        shape
+        (area, d2)
+    }
+
+    /// The ring as indices into the neighbours, counter-clockwise, each with whether the
+    /// face after it is surface.
+    fn write_ring(&self, open: bool, ring: &mut Vec<(u32, bool)>) {
+        let n = self.fan.len();
+        // Start after the widest gap (any start for a closed ring).
+        let start = if open {
+            let widest = (0..n)
+                .filter(|&r| !self.fan[r].2)
+                .max_by(|&r, &q| {
+                    let gap = |r: usize| fan_angle(self.fan[r].1, self.fan[(r + 1) % n].1);
+                    gap(r).total_cmp(&gap(q)).then(q.cmp(&r))
+                })
+                .unwrap_or(0);
+            (widest + 1) % n
+        } else {
+            0
+        };
+        // Vertices that only border gaps are not neighbours on the surface.
+        ring.extend(
+            (0..n)
+                .map(|r| (start + r) % n)
+                .filter(|&r| self.fan[r].2 || self.fan[(r + n - 1) % n].2)
+                .map(|r| (self.fan[r].0, self.fan[r].2)),
+        );
     }
 
     /// Whether the kept projected neighbours leave no angular gap of [`MAX_FAN_ANGLE`] or more

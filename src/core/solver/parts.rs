@@ -11,6 +11,12 @@ use std::sync::atomic::{AtomicU64, Ordering};
 
 use glam::Vec3;
 
+mod anchors;
+mod pressure;
+
+pub use anchors::Anchors;
+pub use pressure::Pressure;
+
 use super::springs::SpringLayout;
 use super::{Anchor, AnchorId, STATE_LIMIT, SolverError, SpringSpec};
 
@@ -388,151 +394,6 @@ impl Springs {
     }
 }
 
-#[derive(Debug, Clone, PartialEq)]
-struct AnchorSlot {
-    generation: u32,
-    anchor: Option<Anchor>,
-}
-
-/// Anchor springs (eq 5) from points to world positions: pins that give, pokes and drags.
-/// Added, moved and removed at any time; each has an [`AnchorId`] valid until it is
-/// removed.
-#[derive(Debug, Clone, Default, PartialEq)]
-pub struct Anchors {
-    slots: Vec<AnchorSlot>,
-    free: Vec<u32>,
-    pub(crate) revision: u64,
-}
-
-impl Anchors {
-    fn check(&self, a: &Anchor, points: usize) -> Result<(), SolverError> {
-        check_index(a.point as usize, points)?;
-        let bad = |what| SolverError::InvalidAnchor {
-            point: a.point,
-            what,
-        };
-        if check_vector(a.point as usize, a.target, "anchor target").is_err() {
-            return Err(bad("target"));
-        }
-        if !non_negative(a.stiffness) {
-            return Err(bad("stiffness"));
-        }
-        if !non_negative(a.damping) {
-            return Err(bad("damping"));
-        }
-        Ok(())
-    }
-
-    /// Adds an anchor on one of `points` points.
-    pub fn add(&mut self, anchor: Anchor, points: usize) -> Result<AnchorId, SolverError> {
-        self.check(&anchor, points)?;
-        self.revision = next_revision();
-        if let Some(slot) = self.free.pop() {
-            let s = &mut self.slots[slot as usize];
-            s.anchor = Some(anchor);
-            return Ok(AnchorId {
-                slot,
-                generation: s.generation,
-            });
-        }
-        let slot = u32::try_from(self.slots.len())
-            .map_err(|_| SolverError::InvalidConfig("too many anchors"))?;
-        self.slots.push(AnchorSlot {
-            generation: 0,
-            anchor: Some(anchor),
-        });
-        Ok(AnchorId {
-            slot,
-            generation: 0,
-        })
-    }
-
-    fn slot(&self, id: AnchorId) -> Option<&AnchorSlot> {
-        self.slots
-            .get(id.slot as usize)
-            .filter(|s| s.generation == id.generation && s.anchor.is_some())
-    }
-
-    /// The anchor behind `id`, if it still exists.
-    pub fn get(&self, id: AnchorId) -> Option<&Anchor> {
-        self.slot(id).and_then(|s| s.anchor.as_ref())
-    }
-
-    /// Number of live anchors.
-    pub fn len(&self) -> usize {
-        self.slots.len() - self.free.len()
-    }
-
-    /// Whether there are none.
-    pub fn is_empty(&self) -> bool {
-        self.len() == 0
-    }
-
-    /// Every live anchor.
-    pub fn iter(&self) -> impl Iterator<Item = (AnchorId, &Anchor)> + '_ {
-        self.slots.iter().enumerate().filter_map(|(slot, s)| {
-            s.anchor.as_ref().map(|a| {
-                (
-                    AnchorId {
-                        slot: slot as u32,
-                        generation: s.generation,
-                    },
-                    a,
-                )
-            })
-        })
-    }
-
-    /// Every live anchor, without ids.
-    pub(crate) fn live(&self) -> impl Iterator<Item = &Anchor> + '_ {
-        self.slots.iter().filter_map(|s| s.anchor.as_ref())
-    }
-
-    /// Removes an anchor, returning it.
-    pub fn remove(&mut self, id: AnchorId) -> Option<Anchor> {
-        self.slot(id)?;
-        let s = &mut self.slots[id.slot as usize];
-        let anchor = s.anchor.take();
-        s.generation = s.generation.wrapping_add(1);
-        self.free.push(id.slot);
-        self.revision = next_revision();
-        anchor
-    }
-
-    /// Moves an anchor's target (a drag). The stable step does not depend on targets, so
-    /// this does not make a stepper re-estimate it.
-    pub fn set_target(&mut self, id: AnchorId, target: Vec3) -> Result<(), SolverError> {
-        let point = self.get(id).ok_or(SolverError::UnknownAnchor)?.point;
-        check_vector(point as usize, target, "anchor target").map_err(|_| {
-            SolverError::InvalidAnchor {
-                point,
-                what: "target",
-            }
-        })?;
-        if let Some(a) = self.slots[id.slot as usize].anchor.as_mut() {
-            a.target = target;
-        }
-        Ok(())
-    }
-
-    /// Replaces an anchor's settings (on one of `points` points).
-    pub fn set(&mut self, id: AnchorId, anchor: Anchor, points: usize) -> Result<(), SolverError> {
-        self.get(id).ok_or(SolverError::UnknownAnchor)?;
-        self.check(&anchor, points)?;
-        self.slots[id.slot as usize].anchor = Some(anchor);
-        self.revision = next_revision();
-        Ok(())
-    }
-
-    /// Removes every anchor (their ids become invalid).
-    pub fn clear(&mut self) {
-        let ids: Vec<AnchorId> = self.iter().map(|(id, _)| id).collect();
-        for id in ids {
-            self.remove(id);
-        }
-    }
-}
-
 /// A force on each point from outside the surface (contacts, wind, a game's own systems),
 /// added after the surface's own forces. It stays until changed or cleared.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -591,122 +452,12 @@ impl ExternalForces {
     }
 }
 
-/// Gas inside a closed surface: the over-pressure ΔP = κ·(V₀/V − 1) of an ideal gas kept at
-/// one temperature (κ is the outside pressure) pushes every triangle of the surface outward
-/// with ΔP times its area, a third to each corner. A shell of springs alone keeps any
-/// shape its springs' lengths allow — a dent pushed through stays, as a ping-pong ball's
-/// does — while a closed surface with pressure springs back, like a ball.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Pressure {
-    triangles: Vec<[u32; 3]>,
-    /// Where volumes are measured from (the rest centroid), for precision.
-    origin: Vec3,
-    rest_volume: f64,
-    /// κ, force per unit area.
-    pub stiffness: f32,
-    pub(crate) revision: u64,
-}
-
-impl Pressure {
-    /// Gas of stiffness κ (finite, not negative) filling the closed surface of
-    /// `triangles` (counter-clockwise seen from outside) over points at rest at `rest`.
-    pub fn new(
-        triangles: Vec<[u32; 3]>,
-        rest: &PointState,
-        stiffness: f32,
-    ) -> Result<Self, SolverError> {
-        if !non_negative(stiffness) {
-            return Err(SolverError::InvalidConfig(
-                "the pressure stiffness must be finite and not negative",
-            ));
-        }
-        let n = rest.len();
-        if let Some(t) = triangles
-            .iter()
-            .find(|t| t.iter().any(|&i| i as usize >= n))
-        {
-            return Err(SolverError::PointOutOfRange {
-                index: t.iter().copied().max().unwrap_or(0) as usize,
-                points: n,
-            });
-        }
-        let origin = if n == 0 {
-            Vec3::ZERO
-        } else {
-            rest.iter_positions().sum::<Vec3>() / n as f32
-        };
-        let mut pressure = Self {
-            triangles,
-            origin,
-            rest_volume: 0.0,
-            stiffness,
-            revision: next_revision(),
-        };
-        pressure.rest_volume = pressure.volume(rest);
-        if !(pressure.rest_volume > 0.0 && pressure.rest_volume.is_finite()) {
-            return Err(SolverError::InvalidConfig(
-                "pressure needs a closed surface enclosing a positive volume",
-            ));
-        }
-        Ok(pressure)
-    }
-
-    /// The enclosed volume at `points`.
-    pub fn volume(&self, points: &PointState) -> f64 {
-        let o = self.origin.as_dvec3();
-        let at = |i: u32| points.position(i as usize).as_dvec3() - o;
-        self.triangles
-            .iter()
-            .map(|&[a, b, c]| at(a).dot(at(b).cross(at(c))))
-            .sum::<f64>()
-            / 6.0
-    }
-
-    /// The enclosed volume at rest.
-    pub fn rest_volume(&self) -> f64 {
-        self.rest_volume
-    }
-
-    /// The over-pressure at `points`.
-    pub fn over_pressure(&self, points: &PointState) -> f64 {
-        let v = self.volume(points).max(self.rest_volume * 1e-3);
-        f64::from(self.stiffness) * (self.rest_volume / v - 1.0)
-    }
-
-    /// Adds the pressure forces at `points` to `f`.
-    pub(crate) fn accumulate(&self, points: &PointState, f: &mut Soa3) {
-        if self.stiffness == 0.0 {
-            return;
-        }
-        let dp = self.over_pressure(points) as f32;
-        for &[a, b, c] in &self.triangles {
-            let (a, b, c) = (a as usize, b as usize, c as usize);
-            let (xa, xb, xc) = (points.position(a), points.position(b), points.position(c));
-            // A third of ΔP times the area vector ½(b − a) × (c − a).
-            let share = (xb - xa).cross(xc - xa) * (dp / 6.0);
-            for i in [a, b, c] {
-                f.set(i, f.get(i) + share);
-            }
-        }
-    }
-
-    /// The gas's potential energy at `points`: κ·(V − V₀) − κ·V₀·ln(V/V₀).
-    pub fn energy(&self, points: &PointState) -> f64 {
-        let (v, v0) = (self.volume(points), self.rest_volume);
-        let k = f64::from(self.stiffness);
-        if v <= 0.0 {
-            return f64::INFINITY;
-        }
-        k * (v - v0) - k * v0 * (v / v0).ln()
-    }
-}
-
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
     /// A regular tetrahedron around the origin, faces counter-clockwise from outside.
-    fn tetrahedron() -> (PointState, Vec<[u32; 3]>) {
+    pub(crate) fn tetrahedron() -> (PointState, Vec<[u32; 3]>) {
         let p = [
             Vec3::new(1.0, 1.0, 1.0),
             Vec3::new(1.0, -1.0, -1.0),
@@ -715,41 +466,6 @@ mod tests {
         ];
         let faces = vec![[0, 1, 2], [0, 3, 1], [0, 2, 3], [1, 3, 2]];
         (PointState::new(&p).unwrap(), faces)
-    }
-
-    #[test]
-    fn pressure_pushes_along_the_volume_gradient() {
-        let (mut points, faces) = tetrahedron();
-        let gas = Pressure::new(faces.clone(), &points, 10.0).unwrap();
-        // The tetrahedron inscribed in the cube [-1, 1]³ holds a third of it.
-        assert!((gas.rest_volume() - 8.0 / 3.0).abs() < 1e-9);
-        // At rest: no over-pressure, no force.
-        let mut f = Soa3::zeros(4);
-        gas.accumulate(&points, &mut f);
-        assert!(f.to_vec3().iter().all(|v| v.length() < 1e-6));
-        // Squeezed: the force on a corner is ΔP times dV/dx (checked by finite differences).
-        points.set_position(0, Vec3::splat(0.5)).unwrap();
-        let mut f = Soa3::zeros(4);
-        gas.accumulate(&points, &mut f);
-        let dp = gas.over_pressure(&points);
-        assert!(dp > 0.0);
-        let h = 1e-3;
-        for axis in [Vec3::X, Vec3::Y, Vec3::Z] {
-            let (mut plus, mut minus) = (points.clone(), points.clone());
-            plus.set_position(0, Vec3::splat(0.5) + axis * h).unwrap();
-            minus.set_position(0, Vec3::splat(0.5) - axis * h).unwrap();
-            let grad = (gas.volume(&plus) - gas.volume(&minus)) / (2.0 * f64::from(h));
-            let along = f64::from(f.get(0).dot(axis));
-            assert!(
-                (along - dp * grad).abs() < 1e-3 * dp.abs().max(1.0),
-                "{along} vs {}",
-                dp * grad
-            );
-        }
-        // Inside out is no volume at all: refused.
-        let inverted: Vec<[u32; 3]> = faces.iter().map(|&[a, b, c]| [a, c, b]).collect();
-        let (rest, _) = tetrahedron();
-        assert!(Pressure::new(inverted, &rest, 10.0).is_err());
     }
 
     #[test]

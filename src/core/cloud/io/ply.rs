@@ -199,39 +199,7 @@ pub(super) fn read(bytes: &[u8]) -> Result<PointCloud, LoadErrorKind> {
             .is_some_and(|v| f > v)
     });
     let last = face_at.map_or(VERTEX, |_| FACE);
-    // Check every count up to the last element read against the bytes available.
-    let payload_bytes = payload_offset(bytes).map_or(0, |o| bytes.len() - o) as u64;
-    let mut needed: u64 = 0;
-    for def in header.elements.values() {
-        let (min, fixed) = min_element_bytes(def, header.encoding);
-        let declared = def.count as u64;
-        let available = payload_bytes.saturating_sub(needed);
-        let max = available / min;
-        if declared > max {
-            // A count far beyond what the bytes can hold is a corrupt header, rejected before
-            // reading; one a little beyond is a truncated file. Fixed-size binary records tell
-            // exactly how many are complete; otherwise the parser finds where the data ends.
-            if declared > max.saturating_mul(super::TRUNCATION_FACTOR) {
-                return Err(LoadErrorKind::CountTooLarge {
-                    element: def.name.clone(),
-                    declared,
-                    payload_bytes,
-                    max,
-                });
-            }
-            if fixed {
-                return Err(LoadErrorKind::Truncated {
-                    element: def.name.clone(),
-                    declared,
-                    found: Some(max),
-                });
-            }
-        }
-        needed = needed.saturating_add(declared.saturating_mul(min));
-        if def.name == last {
-            break;
-        }
-    }
+    check_counts(&header, bytes, last)?;
 
     for def in header.elements.values() {
         if def.name == VERTEX {
@@ -268,6 +236,45 @@ pub(super) fn read(bytes: &[u8]) -> Result<PointCloud, LoadErrorKind> {
         break;
     }
     Ok(cloud.with_faces(faces)?)
+}
+
+/// Checks every element's count, up to the `last` element read, against the bytes the file
+/// has after its header: a count far beyond them is a corrupt header, one a little beyond a
+/// truncated file.
+fn check_counts(header: &Header, bytes: &[u8], last: &str) -> Result<(), LoadErrorKind> {
+    let payload_bytes = payload_offset(bytes).map_or(0, |o| bytes.len() - o) as u64;
+    let mut needed: u64 = 0;
+    for def in header.elements.values() {
+        let (min, fixed) = min_element_bytes(def, header.encoding);
+        let declared = def.count as u64;
+        let available = payload_bytes.saturating_sub(needed);
+        let max = available / min;
+        if declared > max {
+            // A count far beyond what the bytes can hold is a corrupt header, rejected before
+            // reading; one a little beyond is a truncated file. Fixed-size binary records tell
+            // exactly how many are complete; otherwise the parser finds where the data ends.
+            if declared > max.saturating_mul(super::TRUNCATION_FACTOR) {
+                return Err(LoadErrorKind::CountTooLarge {
+                    element: def.name.clone(),
+                    declared,
+                    payload_bytes,
+                    max,
+                });
+            }
+            if fixed {
+                return Err(LoadErrorKind::Truncated {
+                    element: def.name.clone(),
+                    declared,
+                    found: Some(max),
+                });
+            }
+        }
+        needed = needed.saturating_add(declared.saturating_mul(min));
+        if def.name == last {
+            break;
+        }
+    }
+    Ok(())
 }
 
 /// The faces' triangles (each polygon a fan), checking that every corner names a vertex.

@@ -1,0 +1,385 @@
+//! The removal loop of §3: every point's ring judged, the point whose ring is smallest
+//! removed first, its neighbours' rings judged again, until the target or the diameter
+//! limit is reached.
+
+use std::cmp::Reverse;
+use std::collections::BinaryHeap;
+use std::ops::ControlFlow;
+
+use glam::Vec3;
+use kiddo::{ImmutableKdTree, SquaredEuclidean};
+use rayon::prelude::*;
+
+use super::*;
+
+/// Marks an unused neighbour slot.
+const NONE: u32 = u32::MAX;
+
+/// Per-thread scratch space for evaluations.
+#[derive(Default)]
+struct Scratch {
+    builder: RingBuilder,
+    points: Vec<Vec3>,
+    ring: Vec<(u32, bool)>,
+    found: Vec<(f32, u32)>,
+}
+
+/// The removal state.
+pub(super) struct State<'a> {
+    positions: &'a [Vec3],
+    normals: Vec<Vec3>,
+    k: usize,
+    /// Tree over the points remaining when it was built; its items index `tree_ids`.
+    tree: ImmutableKdTree<f32, 3>,
+    tree_ids: Vec<u32>,
+    /// Points the tree was built with.
+    tree_built_with: usize,
+    /// Each point's k nearest remaining neighbours at its last evaluation (`NONE`-padded).
+    knn: Vec<u32>,
+    /// For each point, the points whose `knn` row holds it.
+    rev: Vec<Vec<u32>>,
+    pub(super) shapes: Vec<RingShape>,
+    /// Which slots of each point's `knn` row are ring vertices (bit r = slot r).
+    ring_mask: Vec<u64>,
+    alive: Vec<bool>,
+    dirty: Vec<bool>,
+    generation: Vec<u32>,
+    heap: BinaryHeap<Reverse<(u32, u32, u32)>>,
+    left: usize,
+    removed: usize,
+    duplicates_removed: usize,
+    evaluations: usize,
+    scratch: Scratch,
+}
+
+/// Priority of a shape: its d; 0 for a point with a coincident neighbour; the smallest
+/// positive float for a point without a surface neighbourhood (a thread of points, a tight
+/// ring that projects to an arc), so it goes right after duplicates but within the rules.
+/// Non-negative floats order like their bit patterns.
+fn priority(shape: &RingShape) -> f32 {
+    if shape.coincident {
+        0.0
+    } else if shape.degenerate {
+        f32::MIN_POSITIVE
+    } else {
+        shape.diameter
+    }
+}
+
+impl<'a> State<'a> {
+    pub(super) fn new(positions: &'a [Vec3], normals: &[Vec3], k: usize) -> Self {
+        let n = positions.len();
+        let ids: Vec<u32> = (0..n as u32).collect();
+        let (tree, tree_ids) = build_tree(positions, ids);
+        Self {
+            positions,
+            normals: normals.iter().map(|v| v.normalize_or_zero()).collect(),
+            k,
+            tree,
+            tree_ids,
+            tree_built_with: n,
+            knn: vec![NONE; n * k],
+            rev: vec![Vec::new(); n],
+            shapes: vec![RingShape::default(); n],
+            ring_mask: vec![0; n],
+            alive: vec![true; n],
+            dirty: vec![false; n],
+            generation: vec![0; n],
+            heap: BinaryHeap::with_capacity(n),
+            left: n,
+            removed: 0,
+            duplicates_removed: 0,
+            evaluations: 0,
+            scratch: Scratch::default(),
+        }
+    }
+
+    /// Evaluates every remaining point in parallel (the initial pass).
+    pub(super) fn evaluate_all(&mut self) {
+        let all: Vec<u32> = (0..self.positions.len() as u32).collect();
+        self.evaluate_batch(&all);
+    }
+
+    /// Re-evaluates `points` in parallel against the current tree and requeues them.
+    fn evaluate_batch(&mut self, points: &[u32]) {
+        let k = self.k;
+        let results: Vec<(RingShape, u64, Vec<u32>)> = {
+            let this = &*self;
+            points
+                .par_iter()
+                .with_min_len(EVAL_CHUNK)
+                .map_init(Scratch::default, |scratch, &i| {
+                    let mut row = vec![NONE; k];
+                    let (shape, mask) = this.evaluate(i, scratch, &mut row);
+                    (shape, mask, row)
+                })
+                .collect()
+        };
+        for (&i, (shape, mask, row)) in points.iter().zip(results) {
+            self.apply(i, shape, mask, &row);
+        }
+    }
+
+    /// The ring shape of point `i` among the remaining points and which slots of its
+    /// neighbour row (written to `row`) are ring vertices.
+    fn evaluate(&self, i: u32, scratch: &mut Scratch, row: &mut [u32]) -> (RingShape, u64) {
+        let p = self.positions[i as usize];
+        // The tree still holds removed points, at most a fraction REBUILD_DEAD / REBUILD_OF: ask
+        // for enough that k + 1 remaining ones are likely among the answers.
+        let mut want = (self.k + 1) * self.tree_ids.len() / self.left.max(1) + 1;
+        let found = &mut scratch.found;
+        loop {
+            let asked = want.min(self.tree_ids.len());
+            found.clear();
+            found.extend(
+                self.tree
+                    .query(&p.to_array())
+                    .nearest_n::<SquaredEuclidean<f32>>(
+                        NonZeroUsize::new(asked).unwrap_or(NonZeroUsize::MIN),
+                    )
+                    .execute()
+                    .into_iter()
+                    .map(|nb| (nb.distance, self.tree_ids[nb.item as usize]))
+                    .filter(|&(_, j)| j != i && self.alive[j as usize]),
+            );
+            if found.len() >= self.k || asked == self.tree_ids.len() {
+                break;
+            }
+            want *= 2;
+        }
+        found.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        found.truncate(self.k);
+        scratch.points.clear();
+        for (slot, &(_, j)) in row.iter_mut().zip(found.iter()) {
+            *slot = j;
+            scratch.points.push(self.positions[j as usize]);
+        }
+        scratch.ring.clear();
+        let shape = scratch.builder.build(
+            p,
+            self.normals[i as usize],
+            &scratch.points,
+            Some(&mut scratch.ring),
+        );
+        let mask = scratch
+            .ring
+            .iter()
+            .fold(0u64, |m, &(slot, _)| m | (1u64 << slot));
+        (shape, mask)
+    }
+
+    /// Records a fresh evaluation of `i` and queues it.
+    fn apply(&mut self, i: u32, shape: RingShape, mask: u64, row: &[u32]) {
+        let k = self.k;
+        let iu = i as usize;
+        // Only neighbours that left or entered the row change reverse lists (usually one or
+        // two of k).
+        let old_row = &self.knn[iu * k..(iu + 1) * k];
+        for &old in old_row {
+            if old != NONE
+                && !row.contains(&old)
+                && let Some(pos) = self.rev[old as usize].iter().position(|&x| x == i)
+            {
+                self.rev[old as usize].swap_remove(pos);
+            }
+        }
+        for &new in row {
+            if new != NONE && !self.knn[iu * k..(iu + 1) * k].contains(&new) {
+                self.rev[new as usize].push(i);
+            }
+        }
+        self.knn[iu * k..(iu + 1) * k].copy_from_slice(row);
+        self.shapes[iu] = shape;
+        self.ring_mask[iu] = mask;
+        self.dirty[iu] = false;
+        self.generation[iu] = self.generation[iu].wrapping_add(1);
+        self.evaluations += 1;
+        self.heap.push(Reverse((
+            priority(&shape).to_bits(),
+            i,
+            self.generation[iu],
+        )));
+    }
+
+    /// Re-evaluates one point (sequential path).
+    fn reevaluate(&mut self, i: u32) {
+        let mut scratch = std::mem::take(&mut self.scratch);
+        let mut row = [NONE; MAX_SIMPLIFY_K];
+        let k = self.k;
+        let (shape, mask) = self.evaluate(i, &mut scratch, &mut row[..k]);
+        self.scratch = scratch;
+        self.apply(i, shape, mask, &row[..k]);
+    }
+
+    /// Removes point `i`.
+    fn remove(&mut self, i: u32) {
+        let iu = i as usize;
+        self.alive[iu] = false;
+        self.left -= 1;
+        self.removed += 1;
+        let k = self.k;
+        for q in std::mem::take(&mut self.rev[iu]) {
+            let qu = q as usize;
+            if !self.alive[qu] {
+                continue;
+            }
+            // Only a point whose ring holds `i` changes (or one whose ring is open, degenerate
+            // or has a coincident neighbour, which is not in its ring): deleting a vertex
+            // from a Delaunay triangulation re-triangulates that vertex's star only.
+            let row = &self.knn[qu * k..(qu + 1) * k];
+            let in_ring = row
+                .iter()
+                .position(|&j| j == i)
+                .is_some_and(|slot| self.ring_mask[qu] & (1u64 << slot) != 0);
+            if in_ring
+                || self.shapes[qu].open
+                || self.shapes[qu].degenerate
+                || self.shapes[qu].coincident
+            {
+                self.dirty[qu] = true;
+            }
+        }
+        // Drop `i` from its neighbours' reverse lists.
+        for slot in iu * k..(iu + 1) * k {
+            let j = self.knn[slot];
+            if j != NONE
+                && let Some(pos) = self.rev[j as usize].iter().position(|&x| x == i)
+            {
+                self.rev[j as usize].swap_remove(pos);
+            }
+            self.knn[slot] = NONE;
+        }
+        if (self.tree_built_with - self.left) * REBUILD_OF > self.tree_built_with * REBUILD_DEAD {
+            let ids: Vec<u32> = (0..self.positions.len() as u32)
+                .filter(|&j| self.alive[j as usize])
+                .collect();
+            let (tree, ids) = build_tree(self.positions, ids);
+            self.tree = tree;
+            self.tree_ids = ids;
+            self.tree_built_with = self.left;
+        }
+    }
+
+    /// Removes points until a stopping rule holds.
+    pub(super) fn run(
+        &mut self,
+        floor: usize,
+        config: &SimplifyConfig,
+        progress: &mut dyn FnMut(SimplifyProgress) -> ControlFlow<()>,
+    ) -> StopReason {
+        let total = self.left.saturating_sub(floor).max(1);
+        let step = (total / PROGRESS_STEPS).max(1);
+        loop {
+            let stop = self.remove_until_stop(floor, config, progress, step);
+            if stop != StopReason::ThresholdReached {
+                return stop;
+            }
+            // Make the threshold rule exact: refresh every stale key, then go on if one of
+            // them fell below the threshold.
+            let stale: Vec<u32> = (0..self.positions.len() as u32)
+                .filter(|&i| self.alive[i as usize] && self.dirty[i as usize])
+                .collect();
+            if stale.is_empty() {
+                return stop;
+            }
+            self.evaluate_batch(&stale);
+            let threshold = config.max_diameter.unwrap_or(f32::INFINITY);
+            let below = stale
+                .iter()
+                .any(|&i| priority(&self.shapes[i as usize]) < threshold);
+            if !below {
+                return stop;
+            }
+        }
+    }
+
+    fn remove_until_stop(
+        &mut self,
+        floor: usize,
+        config: &SimplifyConfig,
+        progress: &mut dyn FnMut(SimplifyProgress) -> ControlFlow<()>,
+        step: usize,
+    ) -> StopReason {
+        let threshold = config.max_diameter.unwrap_or(f32::INFINITY);
+        while let Some(Reverse((bits, i, generation))) = self.heap.pop() {
+            let iu = i as usize;
+            if !self.alive[iu] || generation != self.generation[iu] {
+                continue;
+            }
+            if self.dirty[iu] {
+                self.reevaluate(i);
+                continue;
+            }
+            let d = f32::from_bits(bits);
+            let duplicate = d == 0.0 && self.left > MIN_SIMULATION_POINTS;
+            if !duplicate {
+                let stop = if self.left <= floor {
+                    Some(StopReason::TargetReached)
+                } else if d >= threshold {
+                    Some(StopReason::ThresholdReached)
+                } else if d.is_infinite() {
+                    Some(StopReason::NothingRemovable)
+                } else {
+                    None
+                };
+                if let Some(stop) = stop {
+                    self.heap.push(Reverse((bits, i, generation)));
+                    return stop;
+                }
+            } else {
+                self.duplicates_removed += 1;
+            }
+            self.remove(i);
+            if self.removed.is_multiple_of(step)
+                && progress(SimplifyProgress {
+                    points: self.left,
+                    removed: self.removed,
+                    target: config.target,
+                    last_diameter: d,
+                })
+                .is_break()
+            {
+                return StopReason::Cancelled;
+            }
+        }
+        StopReason::NothingRemovable
+    }
+
+    /// Refreshes stale points and collects the result.
+    pub(super) fn finish(mut self, stop: StopReason) -> Simplification {
+        let stale: Vec<u32> = (0..self.positions.len() as u32)
+            .filter(|&i| self.alive[i as usize] && self.dirty[i as usize])
+            .collect();
+        self.evaluate_batch(&stale);
+        let kept: Vec<u32> = (0..self.positions.len() as u32)
+            .filter(|&i| self.alive[i as usize])
+            .collect();
+        let diameters = kept
+            .iter()
+            .map(|&i| self.shapes[i as usize].diameter)
+            .collect();
+        let boundary = kept.iter().map(|&i| self.shapes[i as usize].open).collect();
+        Simplification {
+            kept,
+            diameters,
+            boundary,
+            removed: self.removed,
+            duplicates_removed: self.duplicates_removed,
+            evaluations: self.evaluations,
+            stop,
+            noise_level: 0.0,
+            projected: None,
+        }
+    }
+}
+
+/// A k-d tree over the points `ids` of `positions`; items index the returned id list.
+fn build_tree(positions: &[Vec3], ids: Vec<u32>) -> (ImmutableKdTree<f32, 3>, Vec<u32>) {
+    let coords: Vec<[f32; 3]> = ids
+        .iter()
+        .map(|&i| positions[i as usize].to_array())
+        .collect();
+    // Construction fails only beyond u32::MAX points, which `validate` rules out.
+    let tree = ImmutableKdTree::new_from_slice(&coords).unwrap_or_default();
+    (tree, ids)
+}

@@ -1,0 +1,245 @@
+//! What a solver is told: the integrator, damping model, sub-stepping, and the springs'
+//! material, with their checks.
+
+use glam::Vec3;
+
+use super::*;
+
+/// How a solver advances time.
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, Hash, Default, serde::Serialize, serde::Deserialize,
+)]
+pub enum Integrator {
+    /// Forward Euler, the paper's choice: x += v·h, v += a·h, both from the old state. First
+    /// order; amplifies undamped oscillation at any step, so it needs spring damping.
+    ExplicitEuler,
+    /// Semi-implicit Euler: v += a·h, then x += v·h. First order, symplectic: without
+    /// damping its energy oscillates but does not grow (below the stable step).
+    #[default]
+    SymplecticEuler,
+    /// Linearised backward Euler solved by preconditioned conjugate gradient. First order,
+    /// stable at any step; adds numerical damping at large steps.
+    ImplicitEuler,
+}
+
+impl Integrator {
+    /// Every integrator.
+    pub const ALL: [Integrator; 3] = [
+        Self::ExplicitEuler,
+        Self::SymplecticEuler,
+        Self::ImplicitEuler,
+    ];
+
+    /// The name used in scene files and on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::ExplicitEuler => "explicit-euler",
+            Self::SymplecticEuler => "symplectic-euler",
+            Self::ImplicitEuler => "implicit-euler",
+        }
+    }
+
+    /// Whether the scheme has a stable-step limit.
+    pub fn is_explicit(self) -> bool {
+        !matches!(self, Self::ImplicitEuler)
+    }
+}
+
+impl std::fmt::Display for Integrator {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// An integrator name that is not one of [`Integrator::ALL`].
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("unknown integrator {0:?} (expected explicit-euler, symplectic-euler or implicit-euler)")]
+pub struct UnknownIntegrator(pub String);
+
+impl std::str::FromStr for Integrator {
+    type Err = UnknownIntegrator;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        Self::ALL
+            .into_iter()
+            .find(|i| i.name() == s)
+            .ok_or_else(|| UnknownIntegrator(s.to_owned()))
+    }
+}
+
+/// Which velocity the spring damping acts on.
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, Hash, Default, serde::Serialize, serde::Deserialize,
+)]
+pub enum DampingModel {
+    /// The paper's eq 3: k_d·(v_b − v_a), the whole relative velocity (also damps sliding
+    /// and bending motion across the spring).
+    #[default]
+    Relative,
+    /// Along the spring only: k_d·((v_b − v_a)·l̂)·l̂, as most cloth codes do.
+    Axial,
+}
+
+/// What an explicit integrator does with a step longer than its stable step.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
+pub enum SubstepPolicy {
+    /// Split the step into equal sub-steps, at most `max_substeps`; beyond that the step is
+    /// taken in `max_substeps` pieces and the report says it was limited. Where no step is
+    /// stable (explicit Euler with an undamped spring and no drag) the step is refused as
+    /// with [`SubstepPolicy::Refuse`].
+    Auto {
+        /// Cap on sub-steps per step.
+        max_substeps: u32,
+    },
+    /// Return [`SolverError::StepTooLarge`] instead of sub-stepping.
+    Refuse,
+    /// Take the step as given (fixed-protocol benchmarks); the guard still watches.
+    Unchecked,
+}
+
+impl Default for SubstepPolicy {
+    fn default() -> Self {
+        Self::Auto {
+            max_substeps: DEFAULT_MAX_SUBSTEPS,
+        }
+    }
+}
+
+/// A solver's settings. In a scene file: `solver: (integrator: ImplicitEuler, drag: 4.0)`,
+/// every field optional.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct SolverConfig {
+    /// Time integration scheme.
+    pub integrator: Integrator,
+    /// How spring damping acts.
+    pub damping_model: DampingModel,
+    /// Gravitational acceleration (eq 4).
+    pub gravity: Vec3,
+    /// Viscous drag rate μ (1/s): force −μ·m·v on every point.
+    pub drag: f32,
+    /// What explicit schemes do beyond their stable step.
+    pub substeps: SubstepPolicy,
+    /// Fraction of the estimated stable step an explicit sub-step may take, in (0, 1].
+    pub stability_margin: f32,
+    /// Conjugate gradient stops at this residual relative to the right-hand side.
+    pub cg_tolerance: f32,
+    /// Conjugate gradient iterations per implicit step, at most.
+    pub cg_max_iterations: u32,
+    /// Whether to check the state after each step and restore it when it went bad.
+    pub guard: bool,
+}
+
+impl Default for SolverConfig {
+    fn default() -> Self {
+        Self {
+            integrator: Integrator::default(),
+            damping_model: DampingModel::default(),
+            gravity: STANDARD_GRAVITY,
+            drag: 0.0,
+            substeps: SubstepPolicy::default(),
+            stability_margin: DEFAULT_STABILITY_MARGIN,
+            cg_tolerance: DEFAULT_CG_TOLERANCE,
+            cg_max_iterations: DEFAULT_CG_MAX_ITERATIONS,
+            guard: true,
+        }
+    }
+}
+
+impl SolverConfig {
+    /// Checks the settings.
+    pub fn validate(&self) -> Result<(), SolverError> {
+        if !self.gravity.is_finite() {
+            return Err(SolverError::InvalidConfig("gravity must be finite"));
+        }
+        if !non_negative(self.drag) {
+            return Err(SolverError::InvalidConfig(
+                "drag must be finite and not negative",
+            ));
+        }
+        if !(self.stability_margin > 0.0 && self.stability_margin <= 1.0) {
+            return Err(SolverError::InvalidConfig(
+                "the stability margin must be in (0, 1]",
+            ));
+        }
+        if !(self.cg_tolerance > 0.0 && self.cg_tolerance < 1.0) {
+            return Err(SolverError::InvalidConfig(
+                "the CG tolerance must be in (0, 1)",
+            ));
+        }
+        if self.cg_max_iterations == 0 {
+            return Err(SolverError::InvalidConfig(
+                "CG needs at least one iteration",
+            ));
+        }
+        if self.substeps == (SubstepPolicy::Auto { max_substeps: 0 }) {
+            return Err(SolverError::InvalidConfig("at least one sub-step per step"));
+        }
+        Ok(())
+    }
+}
+
+/// A surface's material: its density (the masses of eq 1) and the stiffness and damping of
+/// the two kinds of spring of a [`SpringNetwork`]. In a scene file:
+/// `material: (density: 1.0, stretch_stiffness: 60.0, bend_stiffness: 20.0)`, every field
+/// optional.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct SpringMaterial {
+    /// Mass per unit area ρ (eq 1).
+    pub density: f32,
+    /// Stiffness of stretch springs (point to ring vertex).
+    pub stretch_stiffness: f32,
+    /// Stiffness of bend springs (ring vertex r to r + 2).
+    pub bend_stiffness: f32,
+    /// Damping of stretch springs.
+    pub stretch_damping: f32,
+    /// Damping of bend springs.
+    pub bend_damping: f32,
+}
+
+impl SpringMaterial {
+    /// The network's stretch springs, then its bend springs, with this material's
+    /// stiffness and damping (the order [`Self::parameters`] numbers them in).
+    pub fn springs(&self, network: &SpringNetwork) -> Vec<SpringSpec> {
+        let spec = |s: &crate::core::network::Spring, k: f32, kd: f32| SpringSpec {
+            a: s.a,
+            b: s.b,
+            rest_length: s.rest_length,
+            stiffness: k,
+            damping: kd,
+        };
+        let stretch = network
+            .stretch
+            .iter()
+            .map(|s| spec(s, self.stretch_stiffness, self.stretch_damping));
+        let bend = network
+            .bend
+            .iter()
+            .map(|s| spec(s, self.bend_stiffness, self.bend_damping));
+        stretch.chain(bend).collect()
+    }
+
+    /// Stiffness and damping of spring `index` of [`Self::springs`] on a network with
+    /// `stretch` stretch springs: for [`Springs::set_parameters`] when the material
+    /// changes.
+    pub fn parameters(&self, index: usize, stretch: usize) -> (f32, f32) {
+        if index < stretch {
+            (self.stretch_stiffness, self.stretch_damping)
+        } else {
+            (self.bend_stiffness, self.bend_damping)
+        }
+    }
+}
+
+impl Default for SpringMaterial {
+    fn default() -> Self {
+        Self {
+            density: crate::core::network::DEFAULT_DENSITY,
+            stretch_stiffness: 200.0,
+            bend_stiffness: 20.0,
+            stretch_damping: 2.0,
+            bend_damping: 0.2,
+        }
+    }
+}

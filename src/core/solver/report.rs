@@ -1,0 +1,197 @@
+//! What a solver says: its typed errors, each step's report, diagnostics, energy and the
+//! stability limit.
+
+use super::*;
+
+/// Why a solver could not be built or stepped.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum SolverError {
+    /// Positions and masses differ in length.
+    #[error("{positions} positions but {masses} masses")]
+    LengthMismatch {
+        /// Number of positions.
+        positions: usize,
+        /// Number of masses.
+        masses: usize,
+    },
+    /// Two parts of one surface disagree on the number of points.
+    #[error("{expected} points but {found} {what}")]
+    PointCountMismatch {
+        /// Which part disagrees.
+        what: &'static str,
+        /// Number of points.
+        expected: usize,
+        /// The part's count.
+        found: usize,
+    },
+    /// More points than 32-bit indices reach.
+    #[error("a solver takes at most {MAX_POINTS} points, got {0}")]
+    TooManyPoints(usize),
+    /// A position, velocity or force is not finite (or beyond [`STATE_LIMIT`]).
+    #[error("point {index}: {what} is not finite or beyond ±{STATE_LIMIT:e}")]
+    InvalidVector {
+        /// The point.
+        index: usize,
+        /// Which quantity.
+        what: &'static str,
+    },
+    /// A mass is not positive and finite.
+    #[error("point {index}: mass {mass} is not positive and finite")]
+    InvalidMass {
+        /// The point.
+        index: usize,
+        /// The mass given.
+        mass: f32,
+    },
+    /// A point index past the end.
+    #[error("point index {index} out of range ({points} points)")]
+    PointOutOfRange {
+        /// The index.
+        index: usize,
+        /// Number of points.
+        points: usize,
+    },
+    /// A spring's endpoint is out of range or equal to the other endpoint.
+    #[error("spring {spring}: endpoints {a} and {b} must be distinct points below {points}")]
+    InvalidSpringEnds {
+        /// The spring's index.
+        spring: usize,
+        /// First endpoint.
+        a: u32,
+        /// Second endpoint.
+        b: u32,
+        /// Number of points.
+        points: usize,
+    },
+    /// A spring's rest length, stiffness or damping is negative or not finite.
+    #[error("spring {spring}: {what} {value} must be finite and not negative")]
+    InvalidSpringParameter {
+        /// The spring's index.
+        spring: usize,
+        /// Which parameter.
+        what: &'static str,
+        /// Its value.
+        value: f32,
+    },
+    /// An anchor's stiffness or damping is negative or not finite, or its target not finite.
+    #[error("anchor on point {point}: {what} must be finite (and not negative)")]
+    InvalidAnchor {
+        /// The anchored point.
+        point: u32,
+        /// What is wrong.
+        what: &'static str,
+    },
+    /// The anchor was removed (or belongs to another solver).
+    #[error("no such anchor")]
+    UnknownAnchor,
+    /// A setting out of range.
+    #[error("invalid solver setting: {0}")]
+    InvalidConfig(&'static str),
+    /// The time step is negative or not finite.
+    #[error("the time step must be finite and not negative, got {0}")]
+    InvalidTimeStep(f32),
+    /// The step exceeds the explicit integrator's stable step and sub-stepping is off.
+    #[error(
+        "a step of {dt} s exceeds the stable step of {integrator} ({stable_dt:e} s){hint}; \
+         take shorter steps, allow sub-steps, add damping or use implicit-euler",
+        hint = if *stable_dt == 0.0 { ": explicit Euler amplifies every undamped oscillation" } else { "" }
+    )]
+    StepTooLarge {
+        /// The step asked for.
+        dt: f32,
+        /// The largest stable step (with the margin).
+        stable_dt: f32,
+        /// The integrator.
+        integrator: Integrator,
+    },
+}
+
+/// What one [`Solver::step`] did.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct StepReport {
+    /// Sub-steps taken (0 for a zero-length step).
+    pub substeps: u32,
+    /// Length of each sub-step.
+    pub substep_dt: f32,
+    /// The sub-step count hit [`SubstepPolicy::Auto`]'s cap: the step ran above the stable
+    /// step.
+    pub limited: bool,
+    /// Conjugate-gradient iterations (implicit Euler), summed over sub-steps.
+    pub cg_iterations: u32,
+    /// Whether every conjugate-gradient solve reached its tolerance.
+    pub cg_converged: bool,
+    /// The guard found a bad state and restored the one from before the step.
+    pub recovered: bool,
+    /// Whether the state is finite after the step (always true with the guard on).
+    pub finite: bool,
+}
+
+/// Running totals over a solver's life.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Diagnostics {
+    /// Steps taken.
+    pub steps: u64,
+    /// Sub-steps taken.
+    pub substeps: u64,
+    /// Steps whose sub-step count hit the cap.
+    pub limited_steps: u64,
+    /// Conjugate-gradient iterations.
+    pub cg_iterations: u64,
+    /// Implicit solves that stopped at the iteration cap.
+    pub cg_unconverged: u64,
+    /// Times the guard restored the state.
+    pub guard_trips: u64,
+    /// Simulated time, s.
+    pub time: f64,
+    /// The last step's report.
+    pub last: StepReport,
+}
+
+/// Energies of the current state (f64 sums).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Energy {
+    /// ½Σm|v|² over free points.
+    pub kinetic: f64,
+    /// ½Σk(|l| − l⁰)² over springs.
+    pub spring: f64,
+    /// −Σm g·x over free points (zero at the origin).
+    pub gravity: f64,
+    /// ½Σk_r|target − x|² over anchors.
+    pub anchor: f64,
+    /// The enclosed gas's (see [`Pressure`]).
+    pub pressure: f64,
+}
+
+impl Energy {
+    /// The sum of all five.
+    pub fn total(&self) -> f64 {
+        self.kinetic + self.spring + self.gravity + self.anchor + self.pressure
+    }
+}
+
+/// The stability estimate of a solver's current network (see the module docs).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Stability {
+    /// Upper bound on the largest squared angular frequency, 1/s².
+    pub omega2_max: f32,
+    /// Upper bound on the largest damping rate, 1/s.
+    pub gamma_max: f32,
+    /// Smallest k_d/k over springs and anchors, s (∞ when there are none).
+    pub damping_ratio_min: f32,
+    /// Largest stable step of symplectic Euler, without the margin (∞ if unbounded).
+    pub symplectic_dt: f32,
+    /// Largest stable step of explicit Euler, without the margin (0 when some spring or
+    /// anchor has no damping and there is no drag: no step is stable).
+    pub explicit_dt: f32,
+}
+
+impl Stability {
+    /// The stable step of `integrator` (∞ for implicit Euler).
+    pub fn dt(&self, integrator: Integrator) -> f32 {
+        match integrator {
+            Integrator::ExplicitEuler => self.explicit_dt,
+            Integrator::SymplecticEuler => self.symplectic_dt,
+            Integrator::ImplicitEuler => f32::INFINITY,
+        }
+    }
+}
