@@ -262,6 +262,59 @@ pub fn first_invalid_point(positions: &[Vec3], normals: &[Vec3]) -> Option<usize
         .position(|(p, n)| !p.is_finite() || !n.is_finite() || n.length_squared() == 0.0)
 }
 
+/// What is wrong with positions and normals given side by side (see [`check_points`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PointsProblem {
+    /// Positions and normals differ in length.
+    LengthMismatch {
+        /// Number of positions.
+        positions: usize,
+        /// Number of normals.
+        normals: usize,
+    },
+    /// More points than 32-bit indices can name.
+    TooMany(usize),
+    /// Fewer points than the stage needs.
+    TooFew {
+        /// Points needed.
+        needed: usize,
+        /// Points given.
+        found: usize,
+    },
+    /// The first point whose position is not finite, or whose normal is zero or not finite
+    /// ([`first_invalid_point`]).
+    Invalid(usize),
+}
+
+/// The checks every stage that takes points with normals by index makes (simplification,
+/// the network), in this order: equal lengths, indices that fit in 32 bits, at least
+/// `needed` points, every point valid. Each stage turns the problem into its own typed error.
+pub fn check_points(
+    positions: &[Vec3],
+    normals: &[Vec3],
+    needed: usize,
+) -> Result<(), PointsProblem> {
+    if positions.len() != normals.len() {
+        return Err(PointsProblem::LengthMismatch {
+            positions: positions.len(),
+            normals: normals.len(),
+        });
+    }
+    if positions.len() >= u32::MAX as usize {
+        return Err(PointsProblem::TooMany(positions.len()));
+    }
+    if positions.len() < needed {
+        return Err(PointsProblem::TooFew {
+            needed,
+            found: positions.len(),
+        });
+    }
+    match first_invalid_point(positions, normals) {
+        Some(i) => Err(PointsProblem::Invalid(i)),
+        None => Ok(()),
+    }
+}
+
 /// Checks one position against the cloud invariants.
 pub(crate) fn check_position(index: usize, p: Vec3) -> Result<(), CloudError> {
     if !p.is_finite() {

@@ -29,8 +29,8 @@ use std::f32::consts::TAU;
 
 use glam::Vec3;
 
-use crate::core::cloud::first_invalid_point;
 use crate::core::cloud::knn::{KnnGraph, KnnIndex};
+use crate::core::cloud::{PointsProblem, check_points};
 use crate::core::normals::orient_normals;
 use crate::core::simplify::tangent_delaunay::{RingBuilder, RingShape};
 
@@ -446,24 +446,12 @@ fn validate(
     if !(config.density > 0.0 && config.density.is_finite()) {
         return Err(NetworkError::InvalidDensity(config.density));
     }
-    if positions.len() != normals.len() {
-        return Err(NetworkError::LengthMismatch {
-            positions: positions.len(),
-            normals: normals.len(),
-        });
-    }
-    if positions.len() >= u32::MAX as usize {
-        return Err(NetworkError::TooManyPoints(positions.len()));
-    }
-    let needed = MIN_SIMULATION_POINTS;
-    if positions.len() < needed {
-        return Err(NetworkError::TooFewPoints {
-            needed,
-            found: positions.len(),
-        });
-    }
-    if let Some(i) = first_invalid_point(positions, normals) {
-        return Err(NetworkError::InvalidPoint(i));
-    }
-    Ok(())
+    check_points(positions, normals, MIN_SIMULATION_POINTS).map_err(|problem| match problem {
+        PointsProblem::LengthMismatch { positions, normals } => {
+            NetworkError::LengthMismatch { positions, normals }
+        }
+        PointsProblem::TooMany(n) => NetworkError::TooManyPoints(n),
+        PointsProblem::TooFew { needed, found } => NetworkError::TooFewPoints { needed, found },
+        PointsProblem::Invalid(i) => NetworkError::InvalidPoint(i),
+    })
 }

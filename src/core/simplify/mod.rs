@@ -44,7 +44,7 @@ use std::ops::ControlFlow;
 use glam::Vec3;
 
 use crate::core::cloud::knn::morton_order;
-use crate::core::cloud::{PointCloud, first_invalid_point};
+use crate::core::cloud::{PointCloud, PointsProblem, check_points};
 use crate::core::normals::denoise::{Denoise, decision_surface};
 use crate::core::simplify::tangent_delaunay::{RingBuilder, RingShape};
 
@@ -335,24 +335,16 @@ fn validate(
     {
         return Err(SimplifyError::InvalidThreshold(d));
     }
-    if positions.len() != normals.len() {
-        return Err(SimplifyError::LengthMismatch {
-            positions: positions.len(),
-            normals: normals.len(),
-        });
-    }
-    if positions.len() >= u32::MAX as usize {
-        return Err(SimplifyError::TooManyPoints(positions.len()));
-    }
-    if positions.len() < config.k + 1 {
-        return Err(SimplifyError::TooFewPoints {
+    check_points(positions, normals, config.k + 1).map_err(|problem| match problem {
+        PointsProblem::LengthMismatch { positions, normals } => {
+            SimplifyError::LengthMismatch { positions, normals }
+        }
+        PointsProblem::TooMany(n) => SimplifyError::TooManyPoints(n),
+        PointsProblem::TooFew { needed, found } => SimplifyError::TooFewPoints {
             k: config.k,
-            needed: config.k + 1,
-            found: positions.len(),
-        });
-    }
-    if let Some(i) = first_invalid_point(positions, normals) {
-        return Err(SimplifyError::InvalidPoint(i));
-    }
-    Ok(())
+            needed,
+            found,
+        },
+        PointsProblem::Invalid(i) => SimplifyError::InvalidPoint(i),
+    })
 }
