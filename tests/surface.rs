@@ -2,15 +2,10 @@
 //! degenerate input.
 
 use std::f32::consts::PI;
-use std::path::Path;
 
 use bevy_point_springs::core::cloud::io::read_cloud;
-use bevy_point_springs::core::network::{
-    DenseSupport, NetworkConfig, NetworkError, SpringNetwork, build_network, build_network_over,
-};
-use bevy_point_springs::core::normals::{
-    DEFAULT_NORMAL_K, NormalSource, ensure_normals, estimate_normals,
-};
+use bevy_point_springs::core::network::{NetworkConfig, NetworkError, build_network};
+use bevy_point_springs::core::normals::{DEFAULT_NORMAL_K, ensure_normals};
 use bevy_point_springs::core::simplify::{
     Simplification, SimplifyConfig, SimplifyError, StopReason, simplify, simplify_cloud,
 };
@@ -19,205 +14,10 @@ use glam::{DVec3, Vec3};
 use proptest::prelude::*;
 use spade::{DelaunayTriangulation, HasPosition, Point2, Triangulation};
 
-fn asset(name: &str) -> std::path::PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("assets")
-        .join(name)
-}
-
-/// Simplifies `cloud` to `target` points and builds the network with density `rho`.
-fn network_of(cloud: &PointCloud, target: usize, rho: f32) -> (Simplification, SpringNetwork) {
-    let kept = simplify_cloud(cloud, &SimplifyConfig::target(target)).unwrap();
-    let (p, n) = kept.gather(cloud.positions(), cloud.normals().unwrap());
-    let config = NetworkConfig {
-        density: rho,
-        ..NetworkConfig::default()
-    };
-    let dense = DenseSupport::new(
-        cloud.positions(),
-        cloud.normals().unwrap(),
-        kept.noise_level,
-        kept.projected.is_some(),
-    )
-    .with_triangles(cloud.faces());
-    let net = build_network_over(&p, &n, &config, Some(&dense)).unwrap();
-    (kept, net)
-}
-
-/// The invariants every network must hold, whatever its input.
-fn assert_valid(net: &SpringNetwork) {
-    let n = net.len();
-    assert!(n >= 4);
-    let mut degree = vec![0usize; n];
-    let mut pairs = std::collections::HashSet::new();
-    for s in &net.stretch {
-        assert!(s.a < s.b && (s.b as usize) < n, "{s:?}");
-        assert!(s.rest_length > 0.0 && s.rest_length.is_finite(), "{s:?}");
-        assert!(pairs.insert((s.a, s.b)), "duplicate stretch spring {s:?}");
-        degree[s.a as usize] += 1;
-        degree[s.b as usize] += 1;
-    }
-    for s in &net.bend {
-        assert!(s.a < s.b && (s.b as usize) < n, "{s:?}");
-        assert!(s.rest_length > 0.0 && s.rest_length.is_finite(), "{s:?}");
-        assert!(
-            pairs.insert((s.a, s.b)),
-            "bend spring repeats a spring {s:?}"
-        );
-    }
-    assert!(
-        degree.iter().all(|&d| d >= 3),
-        "a point has fewer than 3 stretch springs: min {}",
-        degree.iter().min().unwrap()
-    );
-    assert!(net.masses.iter().all(|m| m.is_finite() && *m > 0.0));
-    assert!(net.positions.iter().all(|p| p.is_finite()));
-    for (i, d) in degree.iter().enumerate() {
-        // Rings hold exactly the stretch neighbours.
-        assert_eq!(net.ring(i).len(), *d);
-    }
-    let total: f64 = net.masses.iter().map(|m| f64::from(*m)).sum();
-    assert!((total as f32 - net.report.total_mass).abs() <= 1e-4 * total as f32);
-    // The mesh under the springs: manifold, no fold-overs, its report consistent.
-    let r = net.report;
-    assert_eq!((r.non_manifold_edges, r.fold_overs), (0, 0), "{r:?}");
-    assert_eq!(r.triangles, net.triangles.len());
-    assert_eq!(r.closed, r.boundary_points == 0, "{r:?}");
-    assert!(!r.closed || r.boundary_loops == 0, "{r:?}");
-}
-
-/// Simplifies `cloud` to `fraction` of its points and builds the network.
-fn network_at(cloud: &PointCloud, fraction: f64) -> SpringNetwork {
-    let target = ((cloud.len() as f64 * fraction).round() as usize).max(4);
-    network_of(cloud, target, 1.0).1
-}
-
-/// The procedural sphere of `n` points with Gaussian noise of `sigma` mean spacings.
-fn noisy_sphere(n: usize, sigma: f32) -> PointCloud {
-    let clean = shapes::fibonacci_sphere(n, 1.0);
-    let spacing = clean
-        .spacing(&bevy_point_springs::core::cloud::knn::KnnIndex::build(
-            clean.positions(),
-        ))
-        .unwrap()
-        .mean;
-    shapes::with_noise(&clean, sigma * spacing, 11)
-}
-
-#[test]
-fn noisy_spheres_give_closed_networks() {
-    // Gaussian noise of 0.1 and 0.5 spacings: closed spheres at every level from 1 % to 50 %,
-    // with the mass of the sphere (the network lies on the local fits, not on the noise).
-    for sigma in [0.1, 0.5] {
-        let cloud = noisy_sphere(20_000, sigma);
-        for fraction in [0.01, 0.05, 0.2, 0.5] {
-            let net = network_at(&cloud, fraction);
-            assert_valid(&net);
-            let r = net.report;
-            assert!(r.closed, "σ = {sigma}, {fraction}: {r:?}");
-            assert_eq!((r.components, r.euler_characteristic), (1, 2), "{r:?}");
-            let area = 4.0 * PI;
-            assert!((r.total_mass / area - 1.0).abs() < 0.05, "{r:?}");
-        }
-    }
-    // 1.5 spacings (the CGAL sphere scan measures about 1.6): closed at 5 % and 50 %, at most
-    // one small hole or one point off the surface elsewhere (measured: one point at 1 %, one
-    // 6-point loop at 20 %; without the local fits, 16 to 266 loops).
-    let cloud = noisy_sphere(20_000, 1.5);
-    for fraction in [0.01, 0.05, 0.2, 0.5] {
-        let net = network_at(&cloud, fraction);
-        assert_valid(&net);
-        let r = net.report;
-        assert!(
-            r.boundary_loops <= 1 && r.boundary_points <= 8,
-            "{fraction}: {r:?}"
-        );
-        assert!((r.total_mass / (4.0 * PI) - 1.0).abs() < 0.05, "{r:?}");
-    }
-}
-
-#[test]
-fn uneven_density_gives_closed_networks() {
-    // Density falling 10:1 from pole to pole: closed at every level (the rings alone left up
-    // to 9 loops, their circumradius guard opening rings at the density slope).
-    let cloud = shapes::uneven_sphere(20_000, 1.0, 10.0, 3);
-    for fraction in [0.01, 0.05, 0.2, 0.5] {
-        let net = network_at(&cloud, fraction);
-        assert_valid(&net);
-        let r = net.report;
-        assert!(r.closed, "{fraction}: {r:?}");
-        assert_eq!((r.components, r.euler_characteristic), (1, 2), "{r:?}");
-    }
-}
-
-#[test]
-fn closed_scans_give_closed_networks() {
-    // The CGAL sphere scan at every level: closed, one component, a sphere (χ = 2).
-    let sphere = read_cloud(&asset("sphere926.pwn"), None).unwrap();
-    for fraction in [0.01, 0.05, 0.2, 0.5] {
-        let net = network_at(&sphere, fraction);
-        assert_valid(&net);
-        let r = net.report;
-        assert!(r.closed, "{fraction}: {r:?}");
-        assert_eq!((r.components, r.euler_characteristic), (1, 2), "{r:?}");
-    }
-    // The kitten scan (a torus: χ = 0), a bare point cloud, closed at every level. At 5 % and
-    // 50 % the rings close it; at 1 % (a hole at the tail) and 20 % (a point left under the
-    // surface) the dense points' own network, closed, is collapsed onto the simulation
-    // points. The rings alone left 3 to 7 loops.
-    let mut kitten = read_cloud(&asset("kitten.off"), None).unwrap();
-    ensure_normals(&mut kitten, DEFAULT_NORMAL_K).unwrap();
-    let area = network_at(&kitten, 0.5).report.total_mass;
-    for fraction in [0.01, 0.05, 0.2, 0.5] {
-        let net = network_at(&kitten, fraction);
-        assert_valid(&net);
-        let r = net.report;
-        // Crossings: 5 pairs of springs at 1 % (54 points for the whole kitten), none above.
-        assert!(r.closed && r.crossings <= 5, "{fraction}: {r:?}");
-        assert_eq!((r.components, r.euler_characteristic), (1, 0), "{r:?}");
-        // Nothing missing, nothing laid twice: the mass is the surface's (a coarse network
-        // cuts the curved surface's corners).
-        assert!(
-            (r.total_mass / area - 1.0).abs() < 0.07,
-            "{fraction}: {r:?}"
-        );
-    }
-    assert!(network_at(&kitten, 0.01).report.collapsed_from_dense);
-}
-
-#[test]
-fn a_mesh_file_gives_its_own_topology_at_every_level() {
-    // CGAL's decimated elephant (5558 triangles, closed, χ = −4): its trunk, tail and ears are
-    // a few vertices across, where the simulation points' rings disagree. With the file's
-    // faces (and the normals they give) the network is the mesh collapsed onto the simulation
-    // points: closed, the file's χ, at every level.
-    let mut elephant = read_cloud(&asset("elephant.off"), None).unwrap();
-    assert_eq!(elephant.faces().len(), 5558);
-    assert_eq!(
-        ensure_normals(&mut elephant, DEFAULT_NORMAL_K).unwrap(),
-        NormalSource::Faces
-    );
-    let area = network_at(&elephant, 0.5).report.total_mass;
-    for fraction in [0.01, 0.05, 0.2, 0.5] {
-        let net = network_at(&elephant, fraction);
-        assert_valid(&net);
-        let r = net.report;
-        assert!(r.closed, "{fraction}: {r:?}");
-        assert_eq!((r.components, r.euler_characteristic), (1, -4), "{r:?}");
-        assert!((r.total_mass / area - 1.0).abs() < 0.1, "{fraction}: {r:?}");
-        // The points no collapse could remove (where removing them would fold the surface)
-        // stay: a few, at the thin parts.
-        assert!(r.filling_points * 2 <= net.len(), "{fraction}: {r:?}");
-    }
-    // The vertices alone (with the faces' normals): a valid network, but the dense points'
-    // own network has holes at the thin parts, and so has this one (measured at 5 %: 2 loops,
-    // 9 points on them).
-    let (positions, normals) = elephant.clone().into_parts();
-    let bare = PointCloud::new(positions, normals).unwrap();
-    let net = network_at(&bare, 0.05);
-    assert_valid(&net);
-    println!("elephant's vertices alone at 5 %: {:?}", net.report);
-}
+#[allow(dead_code)]
+#[path = "support/surfaces.rs"]
+mod surfaces;
+use surfaces::*;
 
 #[derive(Clone, Copy)]
 struct Projected {
@@ -454,47 +254,6 @@ fn duplicates_are_removed_first_and_never_kept() {
         matches!(err, NetworkError::CoincidentPoints(a, b) if b == a + 1000),
         "{err}"
     );
-}
-
-#[test]
-fn noisy_and_uneven_scans_give_valid_networks() {
-    // 2 % radial noise, normals estimated from the noisy points.
-    let sphere = shapes::fibonacci_sphere(6000, 1.0);
-    let noisy: Vec<Vec3> = sphere
-        .positions()
-        .iter()
-        .enumerate()
-        .map(|(i, p)| {
-            let h = (i as u32).wrapping_mul(2_654_435_761) as f32 / u32::MAX as f32;
-            *p * (1.0 + 0.04 * (h - 0.5))
-        })
-        .collect();
-    let (normals, _) = estimate_normals(&noisy, DEFAULT_NORMAL_K).unwrap();
-    let cloud = PointCloud::new(noisy, Some(normals)).unwrap();
-    let (_, net) = network_of(&cloud, 400, 1.0);
-    assert_valid(&net);
-    assert_eq!(net.report.components, 1, "{:?}", net.report);
-    // Uneven density: the upper half sampled 16 times more densely than the lower.
-    let dense = shapes::hat(8000, 1.0, 1.0);
-    let (dp, dn) = dense.into_parts();
-    let (sp, sn) = shapes::fibonacci_sphere(1000, 1.0).into_parts();
-    let pick = |p: &[Vec3], n: &[Vec3], upper: bool| -> Vec<(Vec3, Vec3)> {
-        p.iter()
-            .zip(n)
-            .filter(|(p, _)| (p.y > 0.0) == upper)
-            .map(|(p, n)| (*p, *n))
-            .collect()
-    };
-    let mut both = pick(&dp, dn.as_ref().unwrap(), true);
-    both.extend(pick(&sp, sn.as_ref().unwrap(), false));
-    let cloud = PointCloud::new(
-        both.iter().map(|t| t.0).collect(),
-        Some(both.iter().map(|t| t.1).collect()),
-    )
-    .unwrap();
-    let (_, net) = network_of(&cloud, 300, 1.0);
-    assert_valid(&net);
-    assert_eq!(net.report.components, 1, "{:?}", net.report);
 }
 
 #[test]
