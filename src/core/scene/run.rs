@@ -30,7 +30,12 @@ pub struct Deformed {
 }
 
 impl SceneRun {
-    pub(super) fn new(scene: Scene, rest: PointCloud, surface: PreparedSurface, timeline: Timeline) -> Self {
+    pub(super) fn new(
+        scene: Scene,
+        rest: PointCloud,
+        surface: PreparedSurface,
+        timeline: Timeline,
+    ) -> Self {
         Self {
             pinned: surface.solver.masses.pinned(),
             scene,
