@@ -8,6 +8,11 @@ use bevy_point_springs::core::cloud::knn::{KnnIndex, SPACING_NEIGHBOURS};
 use glam::Vec3;
 use plotters::prelude::*;
 
+use crate::failure::Failure;
+
+/// Largest picture side, pixels.
+const MAX_PICTURE_SIDE: u32 = 8192;
+
 /// Fraction of the picture left as margin on each side.
 const MARGIN: f32 = 0.06;
 /// Disc radius as a multiple of the point's spacing (mean distance to its nearest few).
@@ -30,6 +35,24 @@ pub struct View {
     pub up: Vec3,
     /// Picture size, pixels.
     pub size: (u32, u32),
+}
+
+impl View {
+    /// A view from `from` with `up` up, on a picture of `size` pixels; a picture too small
+    /// or too large, or a view direction zero or parallel to up, is bad input.
+    pub fn checked(from: Vec3, up: Vec3, size: (u32, u32)) -> Result<Self, Failure> {
+        if !(1..=MAX_PICTURE_SIDE).contains(&size.0) || !(1..=MAX_PICTURE_SIDE).contains(&size.1) {
+            return Err(Failure::bad_input(format!(
+                "the picture must be between 1 and {MAX_PICTURE_SIDE} pixels on each side"
+            )));
+        }
+        if from.length_squared() == 0.0 || up.cross(from).length_squared() == 0.0 {
+            return Err(Failure::bad_input(
+                "the view direction must be non-zero and not parallel to up",
+            ));
+        }
+        Ok(Self { from, up, size })
+    }
 }
 
 /// What was drawn.

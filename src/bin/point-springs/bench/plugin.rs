@@ -9,6 +9,7 @@
 //! core runs the same scene from the same prepared state; ECS and core alternate in blocks
 //! of ticks, and their dense surfaces are compared bit for bit at the end.
 
+use std::fmt;
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -31,11 +32,13 @@ use bevy_point_springs::prelude::{
 };
 use serde::Serialize;
 
-use crate::{Failure, print_json};
+use crate::args::JsonFlag;
+use crate::failure::Failure;
+use crate::report::Report;
 
-/// Options of `bench plugin`.
-#[derive(clap::Args)]
-pub struct PluginArgs {
+/// Arguments of `bench plugin`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
     /// A scene file (default: a generated sphere with a sustained poke).
     scene: Option<PathBuf>,
     /// Dense points of the generated sphere.
@@ -54,9 +57,8 @@ pub struct PluginArgs {
     /// multi-threaded default (less dispatch cost per system when one surface is stepped).
     #[arg(long)]
     single_threaded: bool,
-    /// Print JSON instead of text.
-    #[arg(long)]
-    json: bool,
+    #[command(flatten)]
+    json: JsonFlag,
 }
 
 /// Largest dense cloud the generated scene takes.
@@ -68,26 +70,82 @@ const GENERATED_DT: f32 = 1.0 / 60.0;
 /// Upper bound on waiting for the ECS preparation (a hang guard).
 const PREPARE_TIMEOUT: Duration = Duration::from_secs(600);
 
-#[derive(Serialize)]
+/// What `bench plugin` reports (times in ms, means over the timed ticks).
+#[derive(Debug, Serialize)]
 struct PluginReport {
+    /// The scene file, or the generated sphere.
     scene: String,
+    /// Bevy's executor of the fixed schedule.
     executor: &'static str,
+    /// Dense points.
     dense_points: usize,
+    /// Simulation points.
     sim_points: usize,
+    /// Springs.
     springs: usize,
+    /// The integrator.
     integrator: String,
+    /// Ticks timed.
     ticks: usize,
+    /// The ECS's preparation (in the background).
     ms_prepare: f64,
+    /// The ECS's forces per tick.
     ms_forces: f64,
+    /// Its stepping per tick.
     ms_stepping: f64,
+    /// Its transfer per tick.
     ms_transfer: f64,
+    /// The three together.
     ms_tick: f64,
+    /// Packing the surfels for the upload, per frame.
     ms_upload: f64,
+    /// Tick and upload.
     ms_frame: f64,
+    /// The core's tick.
     ms_core_tick: f64,
+    /// ECS tick / core tick.
     ecs_over_core: f64,
+    /// Whether the ECS's and the core's dense surfaces are the same, bit for bit.
     identical: bool,
 }
+
+impl fmt::Display for PluginReport {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        writeln!(
+            f,
+            "scene        {} ({} dense, {} simulation points, {} springs, {}; {} executor)",
+            self.scene,
+            self.dense_points,
+            self.sim_points,
+            self.springs,
+            self.integrator,
+            self.executor
+        )?;
+        writeln!(
+            f,
+            "prepare      {:.1} ms (in the background)",
+            self.ms_prepare
+        )?;
+        writeln!(
+            f,
+            "ECS tick     {:.3} ms = forces {:.3} + stepping {:.3} + transfer {:.3} (mean of {})",
+            self.ms_tick, self.ms_forces, self.ms_stepping, self.ms_transfer, self.ticks
+        )?;
+        writeln!(
+            f,
+            "upload       {:.3} ms (packing the surfels, CPU side); frame {:.3} ms",
+            self.ms_upload, self.ms_frame
+        )?;
+        writeln!(
+            f,
+            "core tick    {:.3} ms (the same work without the ECS): ECS / core = {:.3}",
+            self.ms_core_tick, self.ecs_over_core
+        )?;
+        writeln!(f, "identical    {}", self.identical)
+    }
+}
+
+impl Report for PluginReport {}
 
 /// The sphere of the paper's Fig. 5 at any size, held in its cup and pressed from above for
 /// the whole run (the points never come to rest, so no transfer is skipped).
@@ -135,12 +193,17 @@ fn generated_scene(dense: usize, sim: usize, steps: usize) -> (Scene, PointCloud
 /// Marker times of the current tick, and the sums over timed ticks.
 #[derive(Resource, Default)]
 struct Clock {
+    /// When each marker system ran this tick.
     marks: [Option<Instant>; 4],
+    /// Seconds of forces, stepping and transfer, summed over the timed ticks.
     sums: [f64; 3],
+    /// Ticks timed.
     timed: usize,
+    /// Whether ticks are being timed.
     timing: bool,
 }
 
+/// Marker system `I` (0 to 3): notes the time; the last adds up the tick.
 fn mark<const I: usize>(mut clock: ResMut<Clock>) {
     clock.marks[I] = Some(Instant::now());
     if I == 3
@@ -154,6 +217,7 @@ fn mark<const I: usize>(mut clock: ResMut<Clock>) {
     }
 }
 
+/// A headless app with the plugin, ticking `dt` per update, and the marker systems.
 fn ecs_app(dt: f32, single_threaded: bool) -> App {
     let tick = Duration::from_secs_f64(f64::from(dt));
     let mut app = App::new();
@@ -187,12 +251,16 @@ fn ecs_app(dt: f32, single_threaded: bool) -> App {
 
 /// The core's run of the same scene.
 struct CoreRun {
+    /// The prepared surface.
     surface: PreparedSurface,
+    /// The scene's pins and pulls over time.
     timeline: Timeline,
+    /// The step, s.
     dt: f32,
 }
 
 impl CoreRun {
+    /// One tick: as the plugin's systems do it.
     fn tick(&mut self) -> Result<(), Failure> {
         let s = &mut self.surface;
         self.timeline
@@ -208,6 +276,7 @@ impl CoreRun {
     }
 }
 
+/// The dense surface of the ECS's `entity`.
 fn dense_of(app: &App, entity: Entity) -> Result<&DenseCloud, Failure> {
     app.world()
         .get::<DenseSurface>(entity)
@@ -215,19 +284,10 @@ fn dense_of(app: &App, entity: Entity) -> Result<&DenseCloud, Failure> {
         .ok_or_else(|| Failure::other("the surface has no dense surface"))
 }
 
-/// Runs the benchmark.
-pub fn bench_plugin(args: &PluginArgs) -> Result<(), Failure> {
-    if args.ticks == 0 || args.block == 0 {
-        return Err(Failure::bad_input("--ticks and --block must be at least 1"));
-    }
-    if !(4..=MAX_DENSE).contains(&args.dense) {
-        return Err(Failure::bad_input(format!(
-            "--dense must be between 4 and {MAX_DENSE}"
-        )));
-    }
-    // Enough timeline for warm-up and both runs' ticks.
-    let steps = args.ticks + args.block + 1;
-    let (scene, cloud, name) = match &args.scene {
+/// The scene to run (from `args.scene`, or generated with `steps` steps), its cloud and its
+/// name.
+fn scene(args: &Args, steps: usize) -> Result<(Scene, PointCloud, String), Failure> {
+    Ok(match &args.scene {
         Some(path) => {
             let (scene, base) = Scene::load(path).map_err(Failure::bad_input)?;
             let cloud = read_cloud(&base.join(&scene.cloud), None).map_err(Failure::bad_input)?;
@@ -238,10 +298,12 @@ pub fn bench_plugin(args: &PluginArgs) -> Result<(), Failure> {
             let name = scene.cloud.display().to_string();
             (scene, cloud, name)
         }
-    };
+    })
+}
 
-    // The ECS: prepared in the background, then ticked.
-    let mut app = ecs_app(scene.dt, args.single_threaded);
+/// Spawns the surface in `app` and updates it until the surface is prepared (in the
+/// background): the surface's entity and the milliseconds it took.
+fn prepare_ecs(app: &mut App, scene: &Scene, cloud: &PointCloud) -> Result<(Entity, f64), Failure> {
     let start = Instant::now();
     let entity = app
         .world_mut()
@@ -261,6 +323,84 @@ pub fn bench_plugin(args: &PluginArgs) -> Result<(), Failure> {
     if let Some(SurfaceStatus::Failed(message)) = app.world().get::<SurfaceStatus>(entity) {
         return Err(Failure::bad_input(message.clone()));
     }
+    Ok((entity, ms_prepare))
+}
+
+/// Steps the ECS's `entity` has taken.
+fn ecs_steps(app: &App, entity: Entity) -> u64 {
+    app.world()
+        .get::<bevy_point_springs::prelude::SurfaceStepper>(entity)
+        .map_or(0, |s| s.diagnostics().steps)
+}
+
+/// Seconds and ticks the timed blocks measured.
+#[derive(Debug, Default)]
+struct Timing {
+    /// Packing the surfels, summed over the ECS's timed ticks.
+    upload: f64,
+    /// The core's ticks, summed.
+    core: f64,
+    /// The core's ticks timed.
+    core_ticks: usize,
+}
+
+/// A warm-up block of each, then ECS and core ticked in alternating timed blocks.
+fn time_blocks(
+    args: &Args,
+    app: &mut App,
+    entity: Entity,
+    core: &mut CoreRun,
+) -> Result<Timing, Failure> {
+    let radii = surfel_radii(
+        dense_of(app, entity)?.transfer().rest_positions(),
+        DEFAULT_SURFEL_SCALE,
+    );
+    let mut timing = Timing::default();
+    // A warm-up block of each, untimed.
+    for _ in 0..args.block {
+        app.update();
+        core.tick()?;
+    }
+    app.world_mut().resource_mut::<Clock>().timing = true;
+    while timing.core_ticks < args.ticks {
+        let n = args.block.min(args.ticks - timing.core_ticks);
+        for _ in 0..n {
+            app.update();
+            let dense = dense_of(app, entity)?;
+            let start = Instant::now();
+            // As the renderer does: a new buffer each frame, moved to the render world.
+            let mut packed = Vec::with_capacity(dense.len() * SURFEL_BYTES);
+            pack_surfels(dense.positions(), dense.normals(), &radii, &mut packed);
+            let handed_over = Arc::new(packed);
+            timing.upload += start.elapsed().as_secs_f64();
+            drop(handed_over);
+        }
+        let start = Instant::now();
+        for _ in 0..n {
+            core.tick()?;
+        }
+        timing.core += start.elapsed().as_secs_f64();
+        timing.core_ticks += n;
+    }
+    Ok(timing)
+}
+
+/// Runs `bench plugin`.
+pub fn run(args: &Args) -> Result<(), Failure> {
+    if args.ticks == 0 || args.block == 0 {
+        return Err(Failure::bad_input("--ticks and --block must be at least 1"));
+    }
+    if !(4..=MAX_DENSE).contains(&args.dense) {
+        return Err(Failure::bad_input(format!(
+            "--dense must be between 4 and {MAX_DENSE}"
+        )));
+    }
+    // Enough timeline for warm-up and both runs' ticks.
+    let steps = args.ticks + args.block + 1;
+    let (scene, cloud, name) = scene(args, steps)?;
+    // The ECS: prepared in the background, then ticked.
+    let mut app = ecs_app(scene.dt, args.single_threaded);
+    let (entity, ms_prepare) = prepare_ecs(&mut app, &scene, &cloud)?;
     // The core, from the same cloud and scene.
     let (surface, timeline) = scene
         .prepare_cloud(cloud, &mut |_| std::ops::ControlFlow::Continue(()))
@@ -271,63 +411,43 @@ pub fn bench_plugin(args: &PluginArgs) -> Result<(), Failure> {
         dt: scene.dt,
     };
     // The first tick ran with the update that finished the preparation: catch the core up.
-    let ecs_steps = |app: &App| {
-        app.world()
-            .get::<bevy_point_springs::prelude::SurfaceStepper>(entity)
-            .map_or(0, |s| s.diagnostics().steps)
-    };
-    while core.surface.solver.diagnostics().steps < ecs_steps(&app) {
+    while core.surface.solver.diagnostics().steps < ecs_steps(&app, entity) {
         core.tick()?;
     }
+    let timing = time_blocks(args, &mut app, entity, &mut core)?;
+    let report = report(args, &scene, name, &app, entity, &core, ms_prepare, &timing)?;
+    args.json.emit(&report)
+}
 
-    let radii = surfel_radii(
-        dense_of(&app, entity)?.transfer().rest_positions(),
-        DEFAULT_SURFEL_SCALE,
-    );
-    let (mut upload, mut core_seconds, mut core_ticks) = (0.0, 0.0, 0);
-    // A warm-up block of each, untimed.
-    for _ in 0..args.block {
-        app.update();
-        core.tick()?;
-    }
-    app.world_mut().resource_mut::<Clock>().timing = true;
-    while core_ticks < args.ticks {
-        let n = args.block.min(args.ticks - core_ticks);
-        for _ in 0..n {
-            app.update();
-            let dense = dense_of(&app, entity)?;
-            let start = Instant::now();
-            // As the renderer does: a new buffer each frame, moved to the render world.
-            let mut packed = Vec::with_capacity(dense.len() * SURFEL_BYTES);
-            pack_surfels(dense.positions(), dense.normals(), &radii, &mut packed);
-            let handed_over = Arc::new(packed);
-            upload += start.elapsed().as_secs_f64();
-            drop(handed_over);
-        }
-        let start = Instant::now();
-        for _ in 0..n {
-            core.tick()?;
-        }
-        core_seconds += start.elapsed().as_secs_f64();
-        core_ticks += n;
-    }
+/// The report, from the ECS's clock and dense surface, and the core's.
+#[allow(clippy::too_many_arguments)]
+fn report(
+    args: &Args,
+    scene: &Scene,
+    name: String,
+    app: &App,
+    entity: Entity,
+    core: &CoreRun,
+    ms_prepare: f64,
+    timing: &Timing,
+) -> Result<PluginReport, Failure> {
     let clock = app.world().resource::<Clock>();
     let timed = clock.timed.max(1) as f64;
     let [forces, stepping, transfer] = clock.sums.map(|s| s * 1e3 / timed);
     let ms_tick = forces + stepping + transfer;
-    let ms_upload = upload * 1e3 / core_ticks as f64;
-    let ms_core_tick = core_seconds * 1e3 / core_ticks as f64;
-    let dense = dense_of(&app, entity)?;
+    let ms_upload = timing.upload * 1e3 / timing.core_ticks as f64;
+    let ms_core_tick = timing.core * 1e3 / timing.core_ticks as f64;
+    let dense = dense_of(app, entity)?;
     let same = |a: &[Vec3], b: &[Vec3]| {
         a.len() == b.len()
             && a.iter()
                 .zip(b)
                 .all(|(p, q)| p.to_array().map(f32::to_bits) == q.to_array().map(f32::to_bits))
     };
-    let identical = ecs_steps(&app) == core.surface.solver.diagnostics().steps
+    let identical = ecs_steps(app, entity) == core.surface.solver.diagnostics().steps
         && same(dense.positions(), core.surface.dense.positions())
         && same(dense.normals(), core.surface.dense.normals());
-    let report = PluginReport {
+    Ok(PluginReport {
         scene: name,
         executor: if args.single_threaded {
             "single-threaded"
@@ -349,35 +469,5 @@ pub fn bench_plugin(args: &PluginArgs) -> Result<(), Failure> {
         ms_core_tick,
         ecs_over_core: ms_tick / ms_core_tick,
         identical,
-    };
-    if args.json {
-        return print_json(&report);
-    }
-    println!(
-        "scene        {} ({} dense, {} simulation points, {} springs, {}; {} executor)",
-        report.scene,
-        report.dense_points,
-        report.sim_points,
-        report.springs,
-        report.integrator,
-        report.executor
-    );
-    println!(
-        "prepare      {:.1} ms (in the background)",
-        report.ms_prepare
-    );
-    println!(
-        "ECS tick     {:.3} ms = forces {:.3} + stepping {:.3} + transfer {:.3} (mean of {})",
-        report.ms_tick, report.ms_forces, report.ms_stepping, report.ms_transfer, report.ticks
-    );
-    println!(
-        "upload       {:.3} ms (packing the surfels, CPU side); frame {:.3} ms",
-        report.ms_upload, report.ms_frame
-    );
-    println!(
-        "core tick    {:.3} ms (the same work without the ECS): ECS / core = {:.3}",
-        report.ms_core_tick, report.ecs_over_core
-    );
-    println!("identical    {}", report.identical);
-    Ok(())
+    })
 }

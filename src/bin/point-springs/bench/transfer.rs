@@ -1,102 +1,60 @@
-//! `point-springs bench`: timings of the core stages against straightforward or literal
-//! implementations, both measured in the same run (ratios, not absolute times, are what
-//! carry over between machines).
+//! `point-springs bench transfer`: displacement transfer (§5) with precomputed coefficients
+//! against the paper's literal per-frame method, both timed in the same run and compared
+//! with the exact answer for a known smooth deformation.
 
+use std::fmt;
 use std::time::Instant;
 
 use bevy_point_springs::core::cloud::shapes::fibonacci_sphere;
-use bevy_point_springs::core::fixtures::cloth::{
-    CLOTH_DT, CLOTH_SIZE, CLOTH_STEPS, ReferenceCloth, cloth_grid, max_sag,
-};
 use bevy_point_springs::core::fixtures::paper_transfer::literal_transfer;
 use bevy_point_springs::core::normals::pca_normals_of;
 use bevy_point_springs::core::simplify::{SimplifyConfig, simplify};
-use bevy_point_springs::core::solver::{Integrator, Solver, SubstepPolicy};
 use bevy_point_springs::core::transfer::{
     DEFAULT_BANDWIDTH, DEFAULT_TRANSFER_K, Transfer, TransferConfig,
 };
-use clap::{Subcommand, ValueEnum};
+use clap::ValueEnum;
 use glam::{Mat3, Vec3};
 use serde::Serialize;
 
-use crate::{Failure, print_json};
+use crate::args::JsonFlag;
+use crate::failure::Failure;
+use crate::report::Report;
 
-#[derive(Subcommand)]
-pub enum BenchCase {
-    /// The standard CPU cloth benchmark: a 32×32 grid with 5826 springs hanging from two
-    /// corners, symplectic Euler at dt = 1/960 for 1000 steps, timed against the
-    /// straightforward loop over the springs in the same run (one thread).
-    ClothGrid {
-        /// Particles per side.
-        #[arg(long, default_value_t = CLOTH_SIZE)]
-        size: usize,
-        /// Steps per run.
-        #[arg(long, default_value_t = CLOTH_STEPS)]
-        steps: usize,
-        /// Integrator (the benchmark's is symplectic-euler; others take the same dt as
-        /// given).
-        #[arg(long, default_value_t = Integrator::SymplecticEuler)]
-        integrator: Integrator,
-        /// Timed runs of each, alternating between the solver and the reference; the
-        /// fastest of each counts.
-        #[arg(long, default_value_t = 5)]
-        repeat: usize,
-        /// Skip the straightforward reference loop.
-        #[arg(long)]
-        no_reference: bool,
-        /// Print JSON instead of text.
-        #[arg(long)]
-        json: bool,
-    },
-    /// Displacement transfer (§5): the precomputed coefficients against the paper's literal
-    /// per-frame method (k-NN search, 3×3 solve and PCA normals per dense point), both
-    /// parallel, timed in the same run; positions and normals are compared with the exact
-    /// answer for a known smooth deformation (a bulge over the upper half of the sphere).
-    Transfer {
-        /// Dense points (a Fibonacci sphere of radius 1).
-        #[arg(long, default_value_t = 1_000_000)]
-        points: usize,
-        /// Simulation points.
-        #[arg(long, default_value_t = 10_000)]
-        sim: usize,
-        /// Where the simulation points come from.
-        #[arg(long, value_enum, default_value_t = SimSource::Sphere)]
-        sim_source: SimSource,
-        /// Simulation points each dense point follows.
-        #[arg(short, long, default_value_t = DEFAULT_TRANSFER_K)]
-        k: usize,
-        /// Gaussian bandwidth, a multiple of the farthest neighbour's distance.
-        #[arg(long, default_value_t = DEFAULT_BANDWIDTH)]
-        bandwidth: f32,
-        /// Timed rounds (each times every method); the fastest round of each counts.
-        #[arg(long, default_value_t = 5)]
-        repeat: usize,
-        /// Skip the literal per-frame method.
-        #[arg(long)]
-        no_literal: bool,
-        /// Threads for both methods (default: one per core).
-        #[arg(long)]
-        threads: Option<usize>,
-        /// Print JSON instead of text.
-        #[arg(long)]
-        json: bool,
-    },
-    /// The Bevy plugin headless (one fixed tick per update): milliseconds per tick split
-    /// into forces, stepping and transfer, the surfel upload's packing, and the same work
-    /// done by the core alone in the same run. Without SCENE: a generated sphere (of
-    /// --dense points, --sim simulation points) in a cup with a sustained poke.
-    #[cfg(feature = "plugin")]
-    Plugin(crate::bench_plugin::PluginArgs),
-    /// Whether the spring network is watertight: each cloud simplified to several fractions
-    /// of its points, with the network's closedness, Euler characteristic, boundary loops,
-    /// fold-overs, crossings and the time of each stage (a Markdown table, or JSON).
-    Network(crate::bench_network::NetworkArgs),
+/// Arguments of `bench transfer`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Dense points (a Fibonacci sphere of radius 1).
+    #[arg(long, default_value_t = 1_000_000)]
+    points: usize,
+    /// Simulation points.
+    #[arg(long, default_value_t = 10_000)]
+    sim: usize,
+    /// Where the simulation points come from.
+    #[arg(long, value_enum, default_value_t = SimSource::Sphere)]
+    sim_source: SimSource,
+    /// Simulation points each dense point follows.
+    #[arg(short, long, default_value_t = DEFAULT_TRANSFER_K)]
+    k: usize,
+    /// Gaussian bandwidth, a multiple of the farthest neighbour's distance.
+    #[arg(long, default_value_t = DEFAULT_BANDWIDTH)]
+    bandwidth: f32,
+    /// Timed rounds (each times every method); the fastest round of each counts.
+    #[arg(long, default_value_t = 5)]
+    repeat: usize,
+    /// Skip the literal per-frame method.
+    #[arg(long)]
+    no_literal: bool,
+    /// Threads for both methods (default: one per core).
+    #[arg(long)]
+    threads: Option<usize>,
+    #[command(flatten)]
+    json: JsonFlag,
 }
 
 /// Where the transfer benchmark's simulation points come from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum, Serialize)]
 #[serde(rename_all = "kebab-case")]
-pub enum SimSource {
+enum SimSource {
     /// A Fibonacci sphere of their own (no set-up time on large clouds).
     Sphere,
     /// Chosen from the dense cloud by §3 (slow on large clouds: half a minute for 10^6).
@@ -115,17 +73,13 @@ const BULGE: f32 = 0.2;
 /// Neighbours for PCA normals (the literal method's normal update).
 const PCA_K: usize = 10;
 
-struct TransferBench {
-    points: usize,
-    sim: usize,
-    sim_source: SimSource,
-    config: TransferConfig,
-    repeat: usize,
-    no_literal: bool,
-}
+/// A timed sample lasts about this long.
+const SAMPLE_MS: f64 = 5.0;
+/// Calls in a sample at most.
+const MAX_SAMPLE_CALLS: usize = 10_000;
 
 /// Errors of a deformed surface against the exact one.
-#[derive(Serialize, Clone, Copy)]
+#[derive(Debug, Serialize, Clone, Copy)]
 struct Errors {
     /// Largest distance from the exact deformed position.
     position_max: f32,
@@ -137,32 +91,102 @@ struct Errors {
     normal_mean_deg: f32,
 }
 
-#[derive(Serialize)]
+/// What `bench transfer` reports.
+#[derive(Debug, Serialize)]
 struct TransferBenchReport {
+    /// "transfer".
     benchmark: &'static str,
+    /// Dense points.
     dense_points: usize,
+    /// Simulation points.
     sim_points: usize,
+    /// Where they came from.
     sim_source: SimSource,
+    /// Simulation points each dense point follows.
     k: usize,
+    /// Gaussian bandwidth.
     bandwidth: f32,
+    /// Threads of both methods.
     threads: usize,
+    /// The bulge's largest displacement of a simulation point.
     max_displacement: f32,
+    /// Time of the precomputation, ms.
     precompute_ms: f64,
+    /// Size of the coefficients, MiB.
     coefficient_mib: f64,
+    /// Rows fitted in full.
     fits_full: usize,
+    /// Rows fitted to a plane.
     fits_plane: usize,
+    /// Rows fitted with regularisation.
     fits_regularised: usize,
     /// Rows whose fit does not give back the rest surface: a frame computes them from the
     /// displacements and the rest frame.
     fits_residual: usize,
+    /// The precomputed transfer of positions and normals, ms per frame.
     apply_ms: f64,
+    /// The precomputed transfer of positions only, ms per frame.
     apply_positions_ms: f64,
+    /// Its errors.
     errors: Errors,
+    /// Its errors with PCA normals of the deformed positions instead.
     errors_pca_normals: Errors,
+    /// The literal method, ms per frame.
     literal_ms: Option<f64>,
+    /// Its errors.
     literal_errors: Option<Errors>,
+    /// Literal time / precomputed time.
     speedup: Option<f64>,
 }
+
+/// Writes a method's line: its time (or a dash) and its errors.
+fn error_line(f: &mut fmt::Formatter<'_>, name: &str, ms: Option<f64>, e: &Errors) -> fmt::Result {
+    let ms = ms.map_or_else(|| "—".to_owned(), |ms| format!("{ms:.3}"));
+    writeln!(
+        f,
+        "{name:<13} {ms:>9} ms   position error max {:.2e} mean {:.2e}   normal error max {:.3}° mean {:.4}°",
+        e.position_max, e.position_mean, e.normal_max_deg, e.normal_mean_deg
+    )
+}
+
+impl fmt::Display for TransferBenchReport {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        writeln!(
+            f,
+            "transfer      {} dense points follow {} simulation points ({:?}), k = {}, h = {} × reach, {} threads",
+            self.dense_points,
+            self.sim_points,
+            self.sim_source,
+            self.k,
+            self.bandwidth,
+            self.threads
+        )?;
+        writeln!(
+            f,
+            "precompute    {:.1} ms, {:.1} MiB of coefficients (fits: {} full, {} plane, {} regularised; {} rows not reproducing the rest surface)",
+            self.precompute_ms,
+            self.coefficient_mib,
+            self.fits_full,
+            self.fits_plane,
+            self.fits_regularised,
+            self.fits_residual
+        )?;
+        error_line(f, "precomputed", Some(self.apply_ms), &self.errors)?;
+        writeln!(f, "  positions only {:.3} ms", self.apply_positions_ms)?;
+        error_line(f, "  +PCA normals", None, &self.errors_pca_normals)?;
+        if let (Some(ms), Some(e), Some(x)) = (self.literal_ms, &self.literal_errors, self.speedup)
+        {
+            error_line(f, "literal", Some(ms), e)?;
+            writeln!(
+                f,
+                "speedup       {x:.1}× (literal / precomputed, positions and normals)"
+            )?;
+        }
+        Ok(())
+    }
+}
+
+impl Report for TransferBenchReport {}
 
 /// The benchmark's deformation: x ↦ x + A·y₊²·x, and its Jacobian.
 fn bulge(x: Vec3) -> (Vec3, Mat3) {
@@ -201,11 +225,6 @@ fn errors(rest: &[Vec3], normals: &[Vec3], positions: &[Vec3], deformed: &[Vec3]
     e
 }
 
-/// A timed sample lasts about this long.
-const SAMPLE_MS: f64 = 5.0;
-/// Calls in a sample at most.
-const MAX_SAMPLE_CALLS: usize = 10_000;
-
 /// Milliseconds per call of `f`, over `calls` calls.
 fn per_call_ms(calls: usize, f: &mut dyn FnMut()) -> f64 {
     let start = Instant::now();
@@ -222,30 +241,73 @@ fn calls_for(f: &mut dyn FnMut()) -> usize {
     ((SAMPLE_MS / once.max(1e-6)).ceil() as usize).clamp(1, MAX_SAMPLE_CALLS)
 }
 
-fn transfer(b: &TransferBench, json: bool) -> Result<(), Failure> {
-    if !(4..=MAX_BENCH_POINTS).contains(&b.points) {
+/// Runs `bench transfer` (on its own thread pool).
+pub fn run(args: &Args) -> Result<(), Failure> {
+    let mut pool = rayon::ThreadPoolBuilder::new();
+    if let Some(threads) = args.threads {
+        if !(1..=MAX_BENCH_THREADS).contains(&threads) {
+            return Err(Failure::bad_input(format!(
+                "--threads must be between 1 and {MAX_BENCH_THREADS}"
+            )));
+        }
+        pool = pool.num_threads(threads);
+    }
+    let pool = pool.build().map_err(Failure::other)?;
+    let report = pool.install(|| measure(args))?;
+    args.json.emit(&report)
+}
+
+/// The transfer configuration the arguments ask for.
+fn config(args: &Args) -> TransferConfig {
+    TransferConfig {
+        k: args.k,
+        bandwidth: args.bandwidth,
+        ..TransferConfig::default()
+    }
+}
+
+/// The simulation points over the dense sphere (`rest` with `normals`).
+fn sim_points(args: &Args, rest: &[Vec3], normals: &[Vec3]) -> Result<Vec<Vec3>, Failure> {
+    Ok(match args.sim_source {
+        SimSource::Sphere => fibonacci_sphere(args.sim, 1.0).positions().to_vec(),
+        SimSource::Simplify => {
+            let kept = simplify(rest, normals, &SimplifyConfig::target(args.sim))
+                .map_err(Failure::bad_input)?;
+            kept.gather(rest, normals).0
+        }
+    })
+}
+
+/// Times of the methods, ms per frame (the fastest round of each).
+#[derive(Debug, Clone, Copy)]
+struct Times {
+    /// Precomputed, positions and normals.
+    apply: f64,
+    /// Precomputed, positions only.
+    apply_positions: f64,
+    /// Literal (infinite when skipped).
+    literal: f64,
+}
+
+/// Times the methods and measures their errors; the report.
+fn measure(args: &Args) -> Result<TransferBenchReport, Failure> {
+    if !(4..=MAX_BENCH_POINTS).contains(&args.points) {
         return Err(Failure::bad_input(format!(
             "--points must be between 4 and {MAX_BENCH_POINTS}"
         )));
     }
-    if !(4..=b.points).contains(&b.sim) {
+    if !(4..=args.points).contains(&args.sim) {
         return Err(Failure::bad_input(
             "--sim must be at least 4 and at most --points",
         ));
     }
-    let dense = fibonacci_sphere(b.points, 1.0);
+    let config = config(args);
+    let dense = fibonacci_sphere(args.points, 1.0);
     let (rest, normals) = (dense.positions(), dense.normals().unwrap_or_default());
-    let sim: Vec<Vec3> = match b.sim_source {
-        SimSource::Sphere => fibonacci_sphere(b.sim, 1.0).positions().to_vec(),
-        SimSource::Simplify => {
-            let kept = simplify(rest, normals, &SimplifyConfig::target(b.sim))
-                .map_err(Failure::bad_input)?;
-            kept.gather(rest, normals).0
-        }
-    };
+    let sim = sim_points(args, rest, normals)?;
     let disp: Vec<Vec3> = sim.iter().map(|&s| bulge(s).0 - s).collect();
     let start = Instant::now();
-    let t = Transfer::new(rest, normals, &sim, b.config).map_err(Failure::bad_input)?;
+    let t = Transfer::new(rest, normals, &sim, config).map_err(Failure::bad_input)?;
     let precompute_ms = start.elapsed().as_secs_f64() * 1e3;
     let mut positions = vec![Vec3::ZERO; rest.len()];
     let mut deformed = vec![Vec3::ZERO; rest.len()];
@@ -254,42 +316,43 @@ fn transfer(b: &TransferBench, json: bool) -> Result<(), Failure> {
     // the run (other tenants, clock changes) does not tilt the ratio; each round times the
     // cheap methods over enough calls to last a few milliseconds. The fastest round counts.
     // The lengths match by construction: the calls cannot fail.
-    let (mut apply_ms, mut apply_positions_ms, mut literal_ms) =
-        (f64::INFINITY, f64::INFINITY, f64::INFINITY);
+    let mut times = Times {
+        apply: f64::INFINITY,
+        apply_positions: f64::INFINITY,
+        literal: f64::INFINITY,
+    };
     let calls = calls_for(&mut || {
         let _ = t.apply(&disp, &mut positions, &mut deformed);
     });
-    for _ in 0..b.repeat.max(1) {
-        apply_ms = apply_ms.min(per_call_ms(calls, &mut || {
+    for _ in 0..args.repeat.max(1) {
+        times.apply = times.apply.min(per_call_ms(calls, &mut || {
             let _ = t.apply(&disp, &mut positions, &mut deformed);
         }));
-        apply_positions_ms = apply_positions_ms.min(per_call_ms(calls, &mut || {
+        times.apply_positions = times.apply_positions.min(per_call_ms(calls, &mut || {
             let _ = t.apply_positions(&disp, &mut positions);
         }));
-        if !b.no_literal {
-            literal_ms = literal_ms.min(per_call_ms(1, &mut || {
-                literal_out = literal_transfer(rest, normals, &sim, &disp, b.config, PCA_K);
+        if !args.no_literal {
+            times.literal = times.literal.min(per_call_ms(1, &mut || {
+                literal_out = literal_transfer(rest, normals, &sim, &disp, config, PCA_K);
             }));
         }
     }
     let _ = t.apply(&disp, &mut positions, &mut deformed);
-    let errors_gradient = errors(rest, normals, &positions, &deformed);
     let pca = pca_normals_of(&positions, &deformed, PCA_K);
-    let errors_pca = errors(rest, normals, &positions, &pca);
-    let literal = (!b.no_literal).then(|| {
+    let literal = (!args.no_literal).then(|| {
         (
-            literal_ms,
+            times.literal,
             errors(rest, normals, &literal_out.0, &literal_out.1),
         )
     });
     let fits = t.report();
-    let report = TransferBenchReport {
+    Ok(TransferBenchReport {
         benchmark: "transfer",
         dense_points: rest.len(),
         sim_points: sim.len(),
-        sim_source: b.sim_source,
-        k: b.config.k,
-        bandwidth: b.config.bandwidth,
+        sim_source: args.sim_source,
+        k: config.k,
+        bandwidth: config.bandwidth,
         threads: rayon::current_num_threads(),
         max_displacement: disp.iter().map(|d| d.length()).fold(0.0, f32::max),
         precompute_ms,
@@ -298,247 +361,12 @@ fn transfer(b: &TransferBench, json: bool) -> Result<(), Failure> {
         fits_plane: fits.plane,
         fits_regularised: fits.regularised,
         fits_residual: fits.residual,
-        apply_ms,
-        apply_positions_ms,
-        errors: errors_gradient,
-        errors_pca_normals: errors_pca,
+        apply_ms: times.apply,
+        apply_positions_ms: times.apply_positions,
+        errors: errors(rest, normals, &positions, &deformed),
+        errors_pca_normals: errors(rest, normals, &positions, &pca),
         literal_ms: literal.as_ref().map(|l| l.0),
         literal_errors: literal.as_ref().map(|l| l.1),
-        speedup: literal.as_ref().map(|l| l.0 / apply_ms),
-    };
-    if json {
-        return print_json(&report);
-    }
-    let r = &report;
-    println!(
-        "transfer      {} dense points follow {} simulation points ({:?}), k = {}, h = {} × reach, {} threads",
-        r.dense_points, r.sim_points, r.sim_source, r.k, r.bandwidth, r.threads
-    );
-    println!(
-        "precompute    {:.1} ms, {:.1} MiB of coefficients (fits: {} full, {} plane, {} regularised; {} rows not reproducing the rest surface)",
-        r.precompute_ms,
-        r.coefficient_mib,
-        r.fits_full,
-        r.fits_plane,
-        r.fits_regularised,
-        r.fits_residual
-    );
-    let show = |name: &str, ms: Option<f64>, e: &Errors| {
-        let ms = ms.map_or_else(|| "—".to_owned(), |ms| format!("{ms:.3}"));
-        println!(
-            "{name:<13} {ms:>9} ms   position error max {:.2e} mean {:.2e}   normal error max {:.3}° mean {:.4}°",
-            e.position_max, e.position_mean, e.normal_max_deg, e.normal_mean_deg
-        );
-    };
-    show("precomputed", Some(r.apply_ms), &r.errors);
-    println!("  positions only {:.3} ms", r.apply_positions_ms);
-    show("  +PCA normals", None, &r.errors_pca_normals);
-    if let (Some(ms), Some(e), Some(x)) = (r.literal_ms, &r.literal_errors, r.speedup) {
-        show("literal", Some(ms), e);
-        println!("speedup       {x:.1}× (literal / precomputed, positions and normals)");
-    }
-    Ok(())
-}
-
-#[derive(Serialize)]
-struct ClothBenchReport {
-    benchmark: &'static str,
-    particles: usize,
-    springs: usize,
-    springs_in_runs: usize,
-    steps: usize,
-    dt: f32,
-    integrator: String,
-    us_per_step: f64,
-    max_sag: f32,
-    finite: bool,
-    cg_iterations: u64,
-    reference_us_per_step: Option<f64>,
-    reference_max_sag: Option<f32>,
-    sag_difference: Option<f32>,
-    max_position_difference: Option<f32>,
-    speedup: Option<f64>,
-}
-
-/// A state that can be stepped and timed.
-struct Timed<S, F> {
-    fresh: F,
-    step: fn(&mut S),
-    best: f64,
-    last: Option<S>,
-}
-
-impl<S, F: FnMut() -> S> Timed<S, F> {
-    fn new(fresh: F, step: fn(&mut S)) -> Self {
-        Self {
-            fresh,
-            step,
-            best: f64::INFINITY,
-            last: None,
-        }
-    }
-
-    /// One timed run of `steps` steps from a fresh state; keeps the fastest microseconds
-    /// per step.
-    fn round(&mut self, steps: usize) {
-        let mut state = (self.fresh)();
-        let start = Instant::now();
-        for _ in 0..steps {
-            (self.step)(&mut state);
-        }
-        let us = start.elapsed().as_secs_f64() * 1e6 / steps.max(1) as f64;
-        self.best = self.best.min(us);
-        self.last = Some(state);
-    }
-
-    /// The fastest microseconds per step and the final state of the last run.
-    fn finish(mut self) -> (f64, S) {
-        let last = self.last.take().unwrap_or_else(|| (self.fresh)());
-        (self.best, last)
-    }
-}
-
-/// Runs a benchmark.
-pub fn bench(case: BenchCase) -> Result<(), Failure> {
-    match case {
-        #[cfg(feature = "plugin")]
-        BenchCase::Plugin(args) => crate::bench_plugin::bench_plugin(&args),
-        BenchCase::Network(args) => crate::bench_network::bench_network(&args),
-        BenchCase::ClothGrid {
-            size,
-            steps,
-            integrator,
-            repeat,
-            no_reference,
-            json,
-        } => cloth(size, steps, integrator, repeat, no_reference, json),
-        BenchCase::Transfer {
-            points,
-            sim,
-            sim_source,
-            k,
-            bandwidth,
-            repeat,
-            no_literal,
-            threads,
-            json,
-        } => {
-            let mut pool = rayon::ThreadPoolBuilder::new();
-            if let Some(threads) = threads {
-                if !(1..=MAX_BENCH_THREADS).contains(&threads) {
-                    return Err(Failure::bad_input(format!(
-                        "--threads must be between 1 and {MAX_BENCH_THREADS}"
-                    )));
-                }
-                pool = pool.num_threads(threads);
-            }
-            let pool = pool.build().map_err(Failure::other)?;
-            let bench = TransferBench {
-                points,
-                sim,
-                sim_source,
-                config: TransferConfig {
-                    k,
-                    bandwidth,
-                    ..TransferConfig::default()
-                },
-                repeat,
-                no_literal,
-            };
-            pool.install(|| transfer(&bench, json))
-        }
-    }
-}
-
-fn cloth(
-    size: usize,
-    steps: usize,
-    integrator: Integrator,
-    repeat: usize,
-    no_reference: bool,
-    json: bool,
-) -> Result<(), Failure> {
-    let grid = cloth_grid(size).map_err(Failure::bad_input)?;
-    let solver = grid
-        .solver_with(integrator, SubstepPolicy::Unchecked)
-        .map_err(Failure::bad_input)?;
-    // Rounds alternate between the two, so that both see the same machine (the other
-    // core's load and the clock drift over seconds here); the fastest round of each counts.
-    let mut timed_solver = Timed::new(
-        || solver.clone(),
-        // The step is valid by construction; a guard trip shows in `finite` and the
-        // diagnostics.
-        |s: &mut Solver| {
-            let _ = s.step(CLOTH_DT);
-        },
-    );
-    let mut timed_reference = (!no_reference).then(|| {
-        Timed::new(
-            || ReferenceCloth::new(&grid),
-            |r: &mut ReferenceCloth| r.step(CLOTH_DT),
-        )
-    });
-    for _ in 0..repeat.max(1) {
-        timed_solver.round(steps);
-        if let Some(r) = &mut timed_reference {
-            r.round(steps);
-        }
-    }
-    let (us_per_step, solver) = timed_solver.finish();
-    let positions = solver.positions();
-    let sag = max_sag(&grid.positions, &positions);
-    let diagnostics = solver.diagnostics();
-    let reference = timed_reference.map(Timed::finish);
-    let reference_sag = reference
-        .as_ref()
-        .map(|(_, r)| max_sag(&grid.positions, &r.x));
-    let report = ClothBenchReport {
-        benchmark: "cloth-grid",
-        particles: solver.len(),
-        springs: solver.spring_count(),
-        springs_in_runs: solver.springs_in_runs(),
-        steps,
-        dt: CLOTH_DT,
-        integrator: integrator.to_string(),
-        us_per_step,
-        max_sag: sag,
-        finite: diagnostics.guard_trips == 0 && positions.iter().all(|p| p.is_finite()),
-        cg_iterations: diagnostics.cg_iterations,
-        reference_us_per_step: reference.as_ref().map(|(t, _)| *t),
-        reference_max_sag: reference_sag,
-        sag_difference: reference_sag.map(|r| (r - sag).abs()),
-        max_position_difference: reference.as_ref().map(|(_, r)| {
-            r.x.iter()
-                .zip(&positions)
-                .map(|(a, b)| a.distance(*b))
-                .fold(0.0, f32::max)
-        }),
-        speedup: reference.as_ref().map(|(t, _)| t / us_per_step),
-    };
-    if json {
-        return print_json(&report);
-    }
-    println!(
-        "cloth-grid    {} particles, {} springs ({} in vectorised runs), {} steps of {:.6} s, {}",
-        report.particles,
-        report.springs,
-        report.springs_in_runs,
-        report.steps,
-        report.dt,
-        report.integrator
-    );
-    println!(
-        "solver        {:.2} µs/step, max sag {:.6}",
-        report.us_per_step, report.max_sag
-    );
-    if let (Some(t), Some(s), Some(d), Some(x)) = (
-        report.reference_us_per_step,
-        report.reference_max_sag,
-        report.speedup,
-        report.max_position_difference,
-    ) {
-        println!("reference     {t:.2} µs/step, max sag {s:.6}");
-        println!("speedup       {d:.2}×; final positions differ by at most {x:.2e}");
-    }
-    Ok(())
+        speedup: literal.as_ref().map(|l| l.0 / times.apply),
+    })
 }

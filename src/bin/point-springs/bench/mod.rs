@@ -1,0 +1,56 @@
+//! `point-springs bench`: timings of the core stages against straightforward or literal
+//! implementations, both measured in the same run (ratios, not absolute times, are what
+//! carry over between machines).
+
+mod cloth;
+mod network;
+#[cfg(feature = "plugin")]
+mod plugin;
+mod transfer;
+
+use clap::Subcommand;
+
+use crate::failure::Failure;
+
+/// Arguments of `bench`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// The benchmark.
+    #[command(subcommand)]
+    case: Case,
+}
+
+/// The benchmarks.
+#[derive(Debug, Subcommand)]
+enum Case {
+    /// The standard CPU cloth benchmark: a 32×32 grid with 5826 springs hanging from two
+    /// corners, symplectic Euler at dt = 1/960 for 1000 steps, timed against the
+    /// straightforward loop over the springs in the same run (one thread).
+    ClothGrid(cloth::Args),
+    /// Displacement transfer (§5): the precomputed coefficients against the paper's literal
+    /// per-frame method (k-NN search, 3×3 solve and PCA normals per dense point), both
+    /// parallel, timed in the same run; positions and normals are compared with the exact
+    /// answer for a known smooth deformation (a bulge over the upper half of the sphere).
+    Transfer(transfer::Args),
+    /// The Bevy plugin headless (one fixed tick per update): milliseconds per tick split
+    /// into forces, stepping and transfer, the surfel upload's packing, and the same work
+    /// done by the core alone in the same run. Without SCENE: a generated sphere (of
+    /// --dense points, --sim simulation points) in a cup with a sustained poke.
+    #[cfg(feature = "plugin")]
+    Plugin(plugin::Args),
+    /// Whether the spring network is watertight: each cloud simplified to several fractions
+    /// of its points, with the network's closedness, Euler characteristic, boundary loops,
+    /// fold-overs, crossings and the time of each stage (a Markdown table, or JSON).
+    Network(network::Args),
+}
+
+/// Runs `bench`.
+pub fn run(args: Args) -> Result<(), Failure> {
+    match args.case {
+        Case::ClothGrid(args) => cloth::run(&args),
+        Case::Transfer(args) => transfer::run(&args),
+        #[cfg(feature = "plugin")]
+        Case::Plugin(args) => plugin::run(&args),
+        Case::Network(args) => network::run(&args),
+    }
+}
