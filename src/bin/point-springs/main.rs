@@ -2,18 +2,24 @@
 //!
 //! ```text
 //! point-springs info FILE [--format F] [--json]
-//! point-springs normals FILE -o OUT.ply [-k K] [--format F] [--ascii] [--reestimate] [--json]
+//! point-springs normals FILE -o OUT.ply [-k K] [--format F] [--reestimate] [--ascii] [--json]
 //! point-springs simplify FILE (--target N | --max-diameter D) [-k K] [--density RHO]
-//!                        [-o OUT.ply] [--format F] [--ascii] [--json]
+//!                        [--denoise auto|on|off] [-o OUT.ply] [--format F] [--ascii] [--json]
+//! point-springs run SCENE.ron [-o DEFORMED.ply] [--png PICTURE.png] [--view X,Y,Z] [--up X,Y,Z]
+//!                        [--ascii] [--json]
+//! point-springs render FILE... -o PICTURE.png [--view X,Y,Z] [--up X,Y,Z] [--width W]
+//!                        [--height H] [--format F]
+//! point-springs generate (sphere|hat|sheet|letter-b) -o OUT.ply [--points N] [--radius R]
+//!                        [--rim Y] [--size S] [--spacing H] [--uneven U] [--noise SIGMA]
+//!                        [--seed S] [--ascii]
 //! point-springs bench cloth-grid [--size N] [--steps S] [--integrator I] [--repeat R]
 //!                        [--no-reference] [--json]
 //! point-springs bench transfer [--points N] [--sim M] [--sim-source sphere|simplify] [-k K]
-//!                        [--bandwidth H] [--repeat R] [--no-literal] [--json]
-//! point-springs bench plugin [SCENE.ron] [--dense N] [--sim M] [--ticks T] [--block B] [--json]
-//! point-springs run SCENE.ron [-o DEFORMED.ply] [--png PICTURE.png] [--view X,Y,Z] [--json]
-//! point-springs render FILE -o PICTURE.png [--view X,Y,Z] [--up X,Y,Z] [--width W] [--height H]
-//! point-springs generate (sphere|hat|sheet|letter-b) -o OUT.ply [--points N] [--radius R]
-//!                        [--rim Y] [--size S] [--spacing H] [--ascii]
+//!                        [--bandwidth H] [--repeat R] [--no-literal] [--threads T] [--json]
+//! point-springs bench plugin [SCENE.ron] [--dense N] [--sim M] [--ticks T] [--block B]
+//!                        [--single-threaded] [--json]
+//! point-springs bench network FILE... [--levels 1,5,20,50] [-k K] [--denoise auto|on|off]
+//!                        [--format F] [--ignore-faces] [--json]
 //! ```
 //!
 //! Exit codes: 0 success, 2 bad input (unreadable or malformed file, bad arguments),
