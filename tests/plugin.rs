@@ -552,6 +552,65 @@ fn a_grab_dents_the_sphere_and_it_recovers_after_release() {
     assert!(status(&app, sphere).is_ready());
 }
 
+/// The mouse's ray from `camera`, straight down from `from`, as Bevy would build it from
+/// the cursor.
+#[cfg(feature = "render")]
+fn aim_mouse(app: &mut App, camera: Entity, from: Vec3) {
+    use bevy::math::Ray3d;
+    use bevy::picking::backend::ray::{RayId, RayMap};
+    use bevy::picking::pointer::PointerId;
+
+    let ray = Ray3d::new(from, -Dir3::Y);
+    let mut rays = app.world_mut().resource_mut::<RayMap>();
+    rays.map.clear();
+    rays.map.insert(RayId::new(camera, PointerId::Mouse), ray);
+}
+
+/// The mouse in the middle of a 1280×720 window.
+#[cfg(feature = "render")]
+fn mouse_location() -> bevy::picking::pointer::Location {
+    use bevy::camera::NormalizedRenderTarget;
+    use bevy::picking::pointer::Location;
+
+    Location {
+        target: NormalizedRenderTarget::None {
+            width: 1280,
+            height: 720,
+        },
+        position: Vec2::new(640.0, 360.0),
+    }
+}
+
+/// What Bevy's picking writes when the primary button is pressed over `target` at `hit`.
+#[cfg(feature = "render")]
+fn press_mouse(app: &mut App, hit: &bevy::picking::backend::HitData, target: Entity) {
+    use bevy::picking::pointer::{PointerButton, PointerId};
+    use bevy::picking::prelude::{Pointer, Press};
+
+    app.world_mut().write_message(Pointer::new(
+        PointerId::Mouse,
+        mouse_location(),
+        Press {
+            button: PointerButton::Primary,
+            hit: hit.clone(),
+            count: 1,
+        },
+        target,
+    ));
+}
+
+/// What Bevy's input writes when the primary button is released.
+#[cfg(feature = "render")]
+fn release_mouse(app: &mut App) {
+    use bevy::picking::pointer::{PointerAction, PointerButton, PointerId, PointerInput};
+
+    app.world_mut().write_message(PointerInput::new(
+        PointerId::Mouse,
+        mouse_location(),
+        PointerAction::Release(PointerButton::Primary),
+    ));
+}
+
 /// The pointer path (feature `render`): the surfel picking backend answers a ray with the
 /// surface under it; a press on the surface starts a grab, the pointer's ray drags it on the
 /// plane facing the camera, and a release anywhere ends it. Bevy builds rays only for a
@@ -560,13 +619,9 @@ fn a_grab_dents_the_sphere_and_it_recovers_after_release() {
 #[cfg(feature = "render")]
 #[test]
 fn a_pointer_press_drag_and_release_grab_the_surface() {
-    use bevy::camera::NormalizedRenderTarget;
     use bevy::ecs::message::Messages;
-    use bevy::math::Ray3d;
     use bevy::picking::backend::PointerHits;
-    use bevy::picking::backend::ray::{RayId, RayMap};
-    use bevy::picking::pointer::{Location, PointerAction, PointerButton, PointerId, PointerInput};
-    use bevy::picking::prelude::{Pointer, Press};
+    use bevy::picking::pointer::PointerId;
 
     let mut app = create_app_with(&assets_dir(), TICK, |app| {
         app.add_plugins(SurfacePickingPlugin);
@@ -591,13 +646,7 @@ fn a_pointer_press_drag_and_release_grab_the_surface() {
             Transform::from_translation(eye).looking_at(Vec3::ZERO, Vec3::Z),
         ))
         .id();
-    let aim = |app: &mut App, x: f32| {
-        let ray = Ray3d::new(eye + Vec3::X * x, -Dir3::Y);
-        let mut rays = app.world_mut().resource_mut::<RayMap>();
-        rays.map.clear();
-        rays.map.insert(RayId::new(camera, PointerId::Mouse), ray);
-    };
-    aim(&mut app, 0.0);
+    aim_mouse(&mut app, camera, eye);
     app.update();
     let hits = app.world().resource::<Messages<PointerHits>>();
     let hits: Vec<PointerHits> = hits.iter_current_update_messages().cloned().collect();
@@ -612,30 +661,14 @@ fn a_pointer_press_drag_and_release_grab_the_surface() {
     assert!((hit.depth - (5.0 - at.y)).abs() < 1e-4);
     assert!(hit.normal.unwrap().y > 0.9, "facing the camera");
     // A ray that misses the sphere reports nothing.
-    aim(&mut app, 1.5);
+    aim_mouse(&mut app, camera, eye + Vec3::X * 1.5);
     app.update();
     let missed = app.world().resource::<Messages<PointerHits>>();
     assert_eq!(missed.iter_current_update_messages().count(), 0);
 
     // Press on the top: a grab starts there.
-    let location = Location {
-        target: NormalizedRenderTarget::None {
-            width: 1280,
-            height: 720,
-        },
-        position: Vec2::new(640.0, 360.0),
-    };
-    aim(&mut app, 0.0);
-    app.world_mut().write_message(Pointer::new(
-        PointerId::Mouse,
-        location.clone(),
-        Press {
-            button: PointerButton::Primary,
-            hit: hit.clone(),
-            count: 1,
-        },
-        sphere,
-    ));
+    aim_mouse(&mut app, camera, eye);
+    press_mouse(&mut app, &hit, sphere);
     app.update();
     assert!(
         app.world()
@@ -646,7 +679,7 @@ fn a_pointer_press_drag_and_release_grab_the_surface() {
     assert_eq!(held_by, sphere);
     assert!(held >= 2, "{held}");
     // Drag: the pointer's ray moves 0.3 along x; the target follows it on the plane y = hit.
-    aim(&mut app, 0.3);
+    aim_mouse(&mut app, camera, eye + Vec3::X * 0.3);
     for _ in 0..120 {
         app.update();
     }
@@ -662,11 +695,7 @@ fn a_pointer_press_drag_and_release_grab_the_surface() {
     );
     assert!(moved.x > 0.2, "the top followed the drag to {moved}");
     // Release anywhere: the grab ends; the bottom's grab from code stays.
-    app.world_mut().write_message(PointerInput::new(
-        PointerId::Mouse,
-        location,
-        PointerAction::Release(PointerButton::Primary),
-    ));
+    release_mouse(&mut app);
     app.update();
     assert!(
         !app.world()

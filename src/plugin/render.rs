@@ -17,6 +17,7 @@ use std::collections::HashMap;
 
 use bevy::asset::{AssetPath, RenderAssetUsages, embedded_asset, embedded_path};
 use bevy::camera::visibility::NoFrustumCulling;
+use bevy::ecs::system::SystemParam;
 use bevy::material::OpaqueRendererMethod;
 use bevy::mesh::{Indices, MeshTag, MeshVertexBufferLayoutRef, PrimitiveTopology};
 use bevy::pbr::{
@@ -239,14 +240,19 @@ fn slot_for(points: usize) -> usize {
     points.max(MIN_SLOT).next_power_of_two()
 }
 
+/// The assets [`attach_surfels`] adds to: meshes, materials and buffers.
+#[derive(SystemParam)]
+struct SurfelAssets<'w> {
+    meshes: ResMut<'w, Assets<Mesh>>,
+    materials: ResMut<'w, Assets<SurfelMaterial>>,
+    buffers: ResMut<'w, Assets<ShaderBuffer>>,
+}
+
 /// Gives new (or outgrown) drawn surfaces a slot, a mesh and their batch's material.
-#[allow(clippy::too_many_arguments)]
 fn attach_surfels(
     mut commands: Commands,
     mut batches: ResMut<SurfelBatches>,
-    mut meshes: ResMut<Assets<Mesh>>,
-    mut materials: ResMut<Assets<SurfelMaterial>>,
-    mut buffers: ResMut<Assets<ShaderBuffer>>,
+    mut assets: SurfelAssets,
     mut surfaces: Query<(
         Entity,
         &DenseSurface,
@@ -257,9 +263,7 @@ fn attach_surfels(
 ) {
     // Forget despawned surfaces (their slots are reused when the batch is laid out anew).
     for entity in removed.read() {
-        for batch in batches.batches.values_mut() {
-            batch.members.retain(|m| m.0 != entity);
-        }
+        batches.forget(entity);
     }
     for (entity, dense, render, slot) in &mut surfaces {
         let key = look(render.color);
@@ -288,46 +292,11 @@ fn attach_surfels(
             batch.members.retain(|m| m.0 != entity);
         }
         let size = slot_for(dense.len());
-        let batch = batches.batches.entry(key).or_insert_with(|| {
-            let buffer = buffers.add(ShaderBuffer::new(
-                &vec![0u8; SURFEL_BYTES * size],
-                RenderAssetUsages::RENDER_WORLD,
-            ));
-            let material = materials.add(SurfelMaterial {
-                base: StandardMaterial {
-                    base_color: render.color,
-                    perceptual_roughness: 0.7,
-                    cull_mode: None,
-                    double_sided: true,
-                    opaque_render_method: OpaqueRendererMethod::Forward,
-                    ..default()
-                },
-                extension: SurfelExtension {
-                    surfels: buffer.clone(),
-                },
-            });
-            Batch {
-                material,
-                buffer,
-                capacity: size,
-                members: Vec::new(),
-            }
-        });
-        let first = batch.used();
-        batch.members.push((entity, first, size));
-        let needed = first + size;
-        if needed > batch.capacity {
-            // A larger buffer under a new handle, and the material pointed at it (the old
-            // buffer is freed once nothing uses it).
-            batch.capacity = needed.next_power_of_two();
-            batch.buffer = buffers.add(ShaderBuffer::new(
-                &vec![0u8; SURFEL_BYTES * batch.capacity],
-                RenderAssetUsages::RENDER_WORLD,
-            ));
-            if let Some(mut material) = materials.get_mut(&batch.material) {
-                material.extension.surfels = batch.buffer.clone();
-            }
-        }
+        let batch = batches
+            .batches
+            .entry(key)
+            .or_insert_with(|| Batch::new(render.color, size, &mut assets));
+        let first = batch.join(entity, size, &mut assets);
         let radii = surfel_radii(dense.transfer().rest_positions(), render.radius_scale);
         commands.entity(entity).insert((
             SurfelSlot {
@@ -336,11 +305,70 @@ fn attach_surfels(
                 radii,
                 uploaded: 0,
             },
-            Mesh3d(meshes.add(index_mesh(size))),
+            Mesh3d(assets.meshes.add(index_mesh(size))),
             MeshMaterial3d(batch.material.clone()),
             MeshTag(first as u32),
             NoFrustumCulling,
         ));
+    }
+}
+
+impl SurfelBatches {
+    /// Drops a despawned surface from every batch.
+    fn forget(&mut self, entity: Entity) {
+        for batch in self.batches.values_mut() {
+            batch.members.retain(|m| m.0 != entity);
+        }
+    }
+}
+
+impl Batch {
+    /// A batch of surfels of `color` with a buffer of `capacity` surfels and no member.
+    fn new(color: Color, capacity: usize, assets: &mut SurfelAssets) -> Self {
+        let buffer = assets.buffers.add(ShaderBuffer::new(
+            &vec![0u8; SURFEL_BYTES * capacity],
+            RenderAssetUsages::RENDER_WORLD,
+        ));
+        let material = assets.materials.add(SurfelMaterial {
+            base: StandardMaterial {
+                base_color: color,
+                perceptual_roughness: 0.7,
+                cull_mode: None,
+                double_sided: true,
+                opaque_render_method: OpaqueRendererMethod::Forward,
+                ..default()
+            },
+            extension: SurfelExtension {
+                surfels: buffer.clone(),
+            },
+        });
+        Self {
+            material,
+            buffer,
+            capacity,
+            members: Vec::new(),
+        }
+    }
+
+    /// Gives `entity` a slot of `size` surfels after the last member's, growing the buffer
+    /// when it does not fit; returns the slot's first surfel.
+    fn join(&mut self, entity: Entity, size: usize, assets: &mut SurfelAssets) -> usize {
+        let first = self.used();
+        self.members.push((entity, first, size));
+        let needed = first + size;
+        if needed > self.capacity {
+            // A larger buffer under a new handle, and the material pointed at it (the old
+            // buffer is freed once nothing uses it).
+            self.capacity = needed.next_power_of_two();
+            self.buffer = assets.buffers.add(ShaderBuffer::new(
+                &vec![0u8; SURFEL_BYTES * self.capacity],
+                RenderAssetUsages::RENDER_WORLD,
+            ));
+            if let Some(mut material) = assets.materials.get_mut(&self.material) {
+                material.extension.surfels = self.buffer.clone();
+            }
+        }
+        first
     }
 }
 

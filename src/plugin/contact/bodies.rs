@@ -1,0 +1,100 @@
+//! The rigid bodies' side of one tick: each body's contacts resolved against its state (its
+//! velocity at the end of the tick without contacts), which carries over from one surface to
+//! the next, and the opposite impulses applied to rapier's dynamic bodies.
+
+use std::collections::HashMap;
+
+use bevy::prelude::*;
+use bevy_rapier3d::prelude::RapierContextMut;
+use bevy_rapier3d::rapier::dynamics::{RigidBody, RigidBodyHandle};
+
+use crate::core::solver::contact::{BodyState, ContactImpulse, ContactParams, Proximity, resolve};
+
+/// Rapier's scene through one tick, and the state each body touched so far is left in.
+pub(super) struct RigidSide<'w> {
+    pub(super) context: RapierContextMut<'w>,
+    /// The bodies touched this tick, as the contacts so far left them.
+    pub(super) bodies: HashMap<RigidBodyHandle, BodyState>,
+    /// Rapier's gravity.
+    pub(super) gravity: Vec3,
+    /// The tick.
+    pub(super) dt: f32,
+}
+
+/// A surface's proximities to one body (or to one fixed collider).
+pub(super) struct BodyContacts {
+    /// The body (none: a fixed collider).
+    pub(super) body: Option<RigidBodyHandle>,
+    /// Where a fixed collider is: the centre it turns about, were it to turn.
+    pub(super) center: Vec3,
+    pub(super) proximities: Vec<Proximity>,
+}
+
+impl RigidSide<'_> {
+    /// Resolves the contacts of each body in turn and applies the opposite impulses to the
+    /// dynamic ones; returns the impulses on the surface, body after body.
+    pub(super) fn resolve(
+        &mut self,
+        by_body: Vec<BodyContacts>,
+        params: &ContactParams,
+    ) -> Vec<ContactImpulse> {
+        let (gravity, dt) = (self.gravity, self.dt);
+        let states = &mut self.bodies;
+        let rigid_bodies = &mut self.context.rigidbody_set.bodies;
+        let mut all = Vec::new();
+        for BodyContacts {
+            body: handle,
+            center,
+            mut proximities,
+        } in by_body
+        {
+            let rigid = handle.and_then(|h| rigid_bodies.get(h));
+            let mut state = match (handle, rigid) {
+                (Some(h), Some(b)) => *states
+                    .entry(h)
+                    .or_insert_with(|| body_state(b, gravity, dt)),
+                _ => BodyState::immovable(Vec3::ZERO, Vec3::ZERO, center),
+            };
+            let Ok(impulses) = resolve(&mut state, &mut proximities, dt, params) else {
+                continue;
+            };
+            if let (Some(h), Some(rigid)) = (handle, handle.and_then(|h| rigid_bodies.get_mut(h))) {
+                states.insert(h, state);
+                if rigid.is_dynamic() {
+                    for c in &impulses {
+                        rigid.apply_impulse_at_point(-c.impulse, c.at, true);
+                    }
+                }
+            }
+            all.extend(impulses);
+        }
+        all
+    }
+}
+
+/// A rapier body as contacts see it: its velocity at the end of the tick without contacts
+/// (gravity included unless it sleeps), and its inverse mass and inertia if dynamic.
+fn body_state(body: &RigidBody, gravity: Vec3, dt: f32) -> BodyState {
+    let center = body.center_of_mass();
+    if !body.is_dynamic() {
+        return BodyState::immovable(body.linvel(), body.angvel(), center);
+    }
+    let fall = if body.is_sleeping() {
+        Vec3::ZERO
+    } else {
+        gravity * body.gravity_scale() * dt
+    };
+    let props = body.mass_properties();
+    let i = props.effective_world_inv_inertia;
+    BodyState {
+        linear: body.linvel() + fall,
+        angular: body.angvel(),
+        center,
+        inv_mass: props.effective_inv_mass,
+        inv_inertia: Mat3::from_cols(
+            Vec3::new(i.m11, i.m12, i.m13),
+            Vec3::new(i.m12, i.m22, i.m23),
+            Vec3::new(i.m13, i.m23, i.m33),
+        ),
+    }
+}

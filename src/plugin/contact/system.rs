@@ -1,0 +1,171 @@
+//! The contact system: rapier's colliders listed once per tick, then each ready surface
+//! touched by those near it, the impulses added to its forces and written to its report,
+//! and the tick's costs summed.
+
+use std::collections::HashMap;
+
+use bevy::ecs::query::QueryData;
+use bevy::prelude::*;
+use bevy_rapier3d::plugin::{DefaultRapierContext, RapierConfiguration};
+use bevy_rapier3d::prelude::{CollisionGroups, WriteRapierContext};
+use bevy_rapier3d::rapier::geometry::InteractionGroups;
+
+use super::bodies::RigidSide;
+use super::colliders::{NearCollider, list_colliders};
+use super::surface::{SurfaceFrame, SurfaceView};
+use super::touch::{Touched, touch};
+use super::{ContactDiagnostics, SurfaceContact, SurfaceContacts};
+use crate::core::network::SpringNetwork;
+use crate::plugin::components::{
+    SimulationPoints, SurfaceForces, SurfaceMasses, SurfaceNetwork, SurfaceSettings,
+    SurfaceSprings, SurfaceStatus, SurfaceStepper,
+};
+
+/// A surface as the contacts read and write it, as one query item.
+#[derive(QueryData, Debug)]
+#[query_data(mutable)]
+pub struct ContactSurface {
+    entity: Entity,
+    points: &'static SimulationPoints,
+    masses: &'static SurfaceMasses,
+    springs: &'static SurfaceSprings,
+    network: &'static SurfaceNetwork,
+    stepper: &'static SurfaceStepper,
+    forces: &'static mut SurfaceForces,
+    place: &'static GlobalTransform,
+    status: &'static SurfaceStatus,
+    settings: &'static SurfaceSettings,
+    contact: Option<Ref<'static, SurfaceContact>>,
+    groups: Option<&'static CollisionGroups>,
+    report: Option<&'static mut SurfaceContacts>,
+}
+
+/// The contacts of one tick; see the [module documentation](super).
+pub fn surface_contacts(
+    time: Res<Time>,
+    mut rapier: WriteRapierContext,
+    configuration: Query<&RapierConfiguration, With<DefaultRapierContext>>,
+    mut surfaces: Query<ContactSurface>,
+    mut diagnostics: ResMut<ContactDiagnostics>,
+    mut commands: Commands,
+) {
+    let started = std::time::Instant::now();
+    let dt = time.delta_secs();
+    let Ok(context) = rapier.single_mut() else {
+        return;
+    };
+    if dt <= 0.0 {
+        return;
+    }
+    let gravity = configuration.single().map_or(Vec3::ZERO, |c| c.gravity);
+    let colliders = list_colliders(&context, dt);
+    let mut rigid = RigidSide {
+        context,
+        bodies: HashMap::new(),
+        gravity,
+        dt,
+    };
+    let mut touching = 0;
+    for surface in &mut surfaces {
+        touching += contact_surface(surface, &colliders, &mut rigid, &mut commands);
+    }
+    *diagnostics = ContactDiagnostics {
+        colliders: colliders.len(),
+        touching,
+        time: started.elapsed(),
+    };
+}
+
+/// One surface's contacts this tick, added to its forces and written to its report (given
+/// one on its first tick); returns how many of its points took an impulse.
+fn contact_surface(
+    surface: ContactSurfaceItem<'_, '_>,
+    colliders: &[NearCollider],
+    rigid: &mut RigidSide<'_>,
+    commands: &mut Commands,
+) -> usize {
+    let ContactSurfaceItem {
+        entity,
+        points,
+        masses,
+        springs,
+        network,
+        stepper,
+        mut forces,
+        place,
+        status,
+        settings,
+        contact,
+        groups,
+        report,
+    } = surface;
+    if !status.is_ready() || settings.paused {
+        return 0;
+    }
+    // Settings out of range are said once, when they are set.
+    let newly_set = contact.as_ref().is_some_and(|c| c.is_changed());
+    let contact = contact.map_or_else(SurfaceContact::default, |c| *c);
+    let mut inserted = None;
+    let report = match report {
+        Some(report) => report.into_inner(),
+        None => inserted.insert(SurfaceContacts::default()),
+    };
+    report.start_tick(&network.0, contact.radius_scale);
+    if contact.enabled && points.len() == report.radii.len() {
+        let frame = SurfaceFrame::new(place, stepper.config().gravity, rigid.dt);
+        let surface = SurfaceView {
+            points,
+            masses,
+            springs,
+            stepper,
+            radii: &report.radii,
+            frame,
+        };
+        let groups = groups.map_or(InteractionGroups::all(), |g| (*g).into());
+        let params = contact.params();
+        if let Err(e) = params.validate() {
+            if newly_set {
+                error!("point-springs surface {entity}: contacts off: {e}");
+            }
+        } else {
+            let touched = touch(&surface, colliders, groups, rigid, &params);
+            report.record(&touched, frame, rigid.dt, &mut forces);
+        }
+    }
+    let touching = report.touching;
+    if let Some(fresh) = inserted {
+        commands.entity(entity).insert(fresh);
+    }
+    touching
+}
+
+impl SurfaceContacts {
+    /// Starts a tick: the radii brought up to date, the last tick's counts cleared.
+    fn start_tick(&mut self, network: &std::sync::Arc<SpringNetwork>, radius_scale: f32) {
+        self.refresh_radii(network, radius_scale);
+        self.colliders_near = 0;
+        self.touching = 0;
+        self.impulse = Vec3::ZERO;
+    }
+
+    /// Adds each impulse over the tick to its point's force, in the surface's coordinates
+    /// (`frame`), and counts what `touched` gave.
+    fn record(
+        &mut self,
+        touched: &Touched,
+        frame: SurfaceFrame,
+        dt: f32,
+        forces: &mut Mut<'_, SurfaceForces>,
+    ) {
+        self.colliders_near = touched.near;
+        for c in &touched.impulses {
+            // Over the tick, in the surface's coordinates; in range by construction.
+            let force = frame.to_local * (c.impulse / dt);
+            if forces.add(c.point, force).is_ok() {
+                self.impulse += c.impulse;
+            }
+        }
+        self.touching = touched.impulses.len();
+        self.total_impulse += self.impulse;
+    }
+}
