@@ -16,7 +16,6 @@ use std::path::Path;
 use std::time::{Duration, Instant};
 
 use bevy::prelude::*;
-use bevy::time::TimeUpdateStrategy;
 use bevy_point_springs::core::cloud::io::read_cloud;
 use bevy_point_springs::core::cloud::shapes;
 use bevy_point_springs::core::pipeline::SurfaceConfig;
@@ -25,8 +24,9 @@ use bevy_point_springs::core::solver::hold_still;
 use bevy_point_springs::prelude::*;
 use bevy_rapier3d::prelude::*;
 
-/// The tick: 60 Hz.
-const TICK: Duration = Duration::from_micros(16_667);
+#[path = "../tests/support/rapier_app.rs"]
+mod rapier_app;
+use rapier_app::create_app;
 
 /// Ticks before timing: the balls fall and come to rest.
 const SETTLE_TICKS: usize = 240;
@@ -45,23 +45,6 @@ fn main() {
     playground();
     sheet(false);
     sheet(true);
-}
-
-fn create_app() -> App {
-    let mut app = App::new();
-    app.add_plugins((
-        MinimalPlugins,
-        TransformPlugin,
-        PointSpringsPlugin::default(),
-        RapierPhysicsPlugin::<NoUserData>::default().in_fixed_schedule(),
-        SurfaceContactPlugin::default(),
-    ))
-    .insert_resource(TimeUpdateStrategy::ManualDuration(TICK))
-    .insert_resource(Time::<Fixed>::from_duration(TICK));
-    app.finish();
-    app.cleanup();
-    app.update();
-    app
 }
 
 fn ball(at: Vec3, radius: f32) -> impl Bundle {

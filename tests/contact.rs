@@ -6,7 +6,6 @@
 use std::time::{Duration, Instant};
 
 use bevy::prelude::*;
-use bevy::time::TimeUpdateStrategy;
 use bevy_point_springs::core::cloud::shapes;
 use bevy_point_springs::core::pipeline::SurfaceConfig;
 use bevy_point_springs::core::simplify::SimplifyConfig;
@@ -14,8 +13,9 @@ use bevy_point_springs::core::solver::hold_still;
 use bevy_point_springs::prelude::*;
 use bevy_rapier3d::prelude::*;
 
-/// The tick: 60 Hz, a game's default.
-const TICK: Duration = Duration::from_micros(16_667);
+#[path = "support/rapier_app.rs"]
+mod rapier_app;
+use rapier_app::TICK;
 
 /// Upper bound on waiting for preparation (a hang guard, not a speed check).
 const SETTLE_TIMEOUT: Duration = Duration::from_secs(120);
@@ -24,19 +24,7 @@ const SETTLE_TIMEOUT: Duration = Duration::from_secs(120);
 const HAT_RIM: f32 = -0.3;
 
 fn create_app(gravity: Vec3) -> App {
-    let mut app = App::new();
-    app.add_plugins((
-        MinimalPlugins,
-        TransformPlugin,
-        PointSpringsPlugin::default(),
-        RapierPhysicsPlugin::<NoUserData>::default().in_fixed_schedule(),
-        SurfaceContactPlugin::default(),
-    ))
-    .insert_resource(TimeUpdateStrategy::ManualDuration(TICK))
-    .insert_resource(Time::<Fixed>::from_duration(TICK));
-    app.finish();
-    app.cleanup();
-    app.update();
+    let mut app = rapier_app::create_app();
     let mut config = app
         .world_mut()
         .query::<&mut RapierConfiguration>()
