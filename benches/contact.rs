@@ -20,13 +20,12 @@ use bevy_point_springs::core::cloud::io::read_cloud;
 use bevy_point_springs::core::cloud::shapes;
 use bevy_point_springs::core::pipeline::SurfaceConfig;
 use bevy_point_springs::core::simplify::SimplifyConfig;
-use bevy_point_springs::core::solver::hold_still;
 use bevy_point_springs::prelude::*;
 use bevy_rapier3d::prelude::*;
 
 #[path = "../tests/support/rapier_app.rs"]
 mod rapier_app;
-use rapier_app::create_app;
+use rapier_app::{create_app, pin};
 
 /// Ticks before timing: the balls fall and come to rest.
 const SETTLE_TICKS: usize = 240;
@@ -72,23 +71,6 @@ fn settle(app: &mut App) {
         app.update();
         std::thread::sleep(Duration::from_millis(1));
     }
-}
-
-/// Pins, where they are and at rest ([`hold_still`]), the points whose rest position `held`
-/// picks.
-fn pin(app: &mut App, surface: Entity, held: impl Fn(Vec3) -> bool) {
-    let rest = app
-        .world()
-        .get::<SurfaceNetwork>(surface)
-        .unwrap()
-        .0
-        .clone();
-    let world = app.world_mut();
-    let (mut masses, mut points) = world
-        .query::<(&mut SurfaceMasses, &mut SimulationPoints)>()
-        .get_mut(world, surface)
-        .unwrap();
-    hold_still(&mut masses, &mut points, |i| held(rest.positions[i])).unwrap();
 }
 
 /// Settles, times, prints one row.

@@ -9,13 +9,12 @@ use bevy::prelude::*;
 use bevy_point_springs::core::cloud::shapes;
 use bevy_point_springs::core::pipeline::SurfaceConfig;
 use bevy_point_springs::core::simplify::SimplifyConfig;
-use bevy_point_springs::core::solver::hold_still;
 use bevy_point_springs::prelude::*;
 use bevy_rapier3d::prelude::*;
 
 #[path = "support/rapier_app.rs"]
 mod rapier_app;
-use rapier_app::TICK;
+use rapier_app::{TICK, pin};
 
 /// Upper bound on waiting for preparation (a hang guard, not a speed check).
 const SETTLE_TIMEOUT: Duration = Duration::from_secs(120);
@@ -56,23 +55,6 @@ fn spawn_hat(app: &mut App, extra: impl Bundle) -> Entity {
     settle(app, hat);
     pin(app, hat, |p| p.y >= HAT_RIM);
     hat
-}
-
-/// Pins, where they are and at rest ([`hold_still`]), the points whose rest position `held`
-/// picks.
-fn pin(app: &mut App, surface: Entity, held: impl Fn(Vec3) -> bool) {
-    let rest = app
-        .world()
-        .get::<SurfaceNetwork>(surface)
-        .unwrap()
-        .0
-        .clone();
-    let world = app.world_mut();
-    let (mut masses, mut points) = world
-        .query::<(&mut SurfaceMasses, &mut SimulationPoints)>()
-        .get_mut(world, surface)
-        .unwrap();
-    hold_still(&mut masses, &mut points, |i| held(rest.positions[i])).unwrap();
 }
 
 fn settle(app: &mut App, surface: Entity) {

@@ -1,13 +1,15 @@
 //! The headless app of the contact tests and the contact bench: `MinimalPlugins` +
 //! `TransformPlugin` + `PointSpringsPlugin` + rapier in the fixed schedule +
 //! `SurfaceContactPlugin`, with `TimeUpdateStrategy::ManualDuration` so that one `update()`
-//! is one fixed tick. Included by path (`#[path = ...] mod rapier_app;`): Cargo does not
-//! build files in a folder under `tests/` as tests of their own.
+//! is one fixed tick; and [`pin`], to hold a surface's points once it is prepared.
+//! Included by path (`#[path = ...] mod rapier_app;`): Cargo does not build files in a
+//! folder under `tests/` as tests of their own.
 
 use std::time::Duration;
 
 use bevy::prelude::*;
 use bevy::time::TimeUpdateStrategy;
+use bevy_point_springs::core::solver::hold_still;
 use bevy_point_springs::prelude::*;
 use bevy_rapier3d::prelude::*;
 
@@ -30,4 +32,21 @@ pub fn create_app() -> App {
     app.cleanup();
     app.update();
     app
+}
+
+/// Pins, where they are and at rest ([`hold_still`]), the points whose rest position `held`
+/// picks.
+pub fn pin(app: &mut App, surface: Entity, held: impl Fn(Vec3) -> bool) {
+    let rest = app
+        .world()
+        .get::<SurfaceNetwork>(surface)
+        .unwrap()
+        .0
+        .clone();
+    let world = app.world_mut();
+    let (mut masses, mut points) = world
+        .query::<(&mut SurfaceMasses, &mut SimulationPoints)>()
+        .get_mut(world, surface)
+        .unwrap();
+    hold_still(&mut masses, &mut points, |i| held(rest.positions[i])).unwrap();
 }
