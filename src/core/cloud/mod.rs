@@ -1,4 +1,9 @@
-//! [`PointCloud`]: positions with optional per-point normals, and its summary statistics.
+//! Stage 1, the dense surface, and the data every later stage shares: [`PointCloud`]
+//! (positions, optional per-point normals, a mesh file's faces) with its checks
+//! ([`check_points`], [`first_invalid_point`], [`MAX_ABS_COORDINATE`]) and summary
+//! statistics; the file readers and writers ([`io`]); nearest-neighbour search and the local
+//! spacing ([`knn`]); procedural surfaces for tests and demos ([`shapes`]); and the surfel
+//! discs the renderer draws from positions and normals ([`surfels`]).
 
 pub mod io;
 pub mod knn;
