@@ -100,6 +100,7 @@ fn setup(
             stretch_damping: 0.6,
             bend_damping: 0.3,
             density: SPHERE_DENSITY,
+            ..default()
         },
         pressure: Some(1000.0),
         solver,

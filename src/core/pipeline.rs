@@ -126,6 +126,9 @@ impl SurfaceConfig {
                 )));
             }
         }
+        if let Err(e) = m.plasticity().validate() {
+            return Err(PrepareError::Invalid(format!("material: {e}")));
+        }
         Ok(())
     }
 }

@@ -208,9 +208,9 @@ pub struct SurfacePressure(pub Pressure);
 #[derive(Component, Debug, Clone, Default, Deref, DerefMut)]
 pub struct SurfaceStepper(pub Stepper);
 
-/// The surface's material ([`SpringMaterial`]: density, spring stiffness and damping).
-/// Changing it sets every spring's stiffness and damping anew (the masses stay those of the
-/// density it was prepared with).
+/// The surface's material ([`SpringMaterial`]: density, spring stiffness and damping,
+/// plasticity). Changing it sets every spring's stiffness, damping and plasticity anew (the
+/// masses stay those of the density it was prepared with).
 #[derive(Component, Debug, Clone, Copy, PartialEq, Reflect, Deref, DerefMut)]
 #[reflect(Component, Debug)]
 pub struct SurfaceMaterial(#[reflect(remote = SpringMaterialReflect)] pub SpringMaterial);
@@ -230,6 +230,10 @@ pub struct SpringMaterialReflect {
     pub stretch_damping: f32,
     /// Damping of bend springs.
     pub bend_damping: f32,
+    /// Strain borne elastically before the rest lengths creep.
+    pub yield_strain: f32,
+    /// How fast the strain beyond yield becomes the rest length, per second (0: elastic).
+    pub creep_rate: f32,
 }
 
 /// The simulation points at rest: positions, normals, rings, springs and masses as §3–§4

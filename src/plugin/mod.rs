@@ -132,7 +132,9 @@ impl Plugin for PointSpringsPlugin {
                     )
                         .chain()
                         .in_set(PointSpringsSystems::Forces),
-                    simulate::integrate.in_set(PointSpringsSystems::Integrate),
+                    (simulate::integrate, simulate::plastic_flow)
+                        .chain()
+                        .in_set(PointSpringsSystems::Integrate),
                     simulate::transfer_tick.in_set(PointSpringsSystems::Transfer),
                 ),
             )

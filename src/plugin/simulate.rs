@@ -64,7 +64,7 @@ pub(crate) fn drive_timelines(
     }
 }
 
-/// A changed material sets the stiffness and damping of every spring.
+/// A changed material sets the stiffness, damping and plasticity of every spring.
 pub(crate) fn apply_materials(
     mut surfaces: Query<
         (
@@ -79,7 +79,10 @@ pub(crate) fn apply_materials(
     for (entity, material, network, mut springs) in &mut surfaces {
         let material: SpringMaterial = material.0;
         let stretch = network.stretch.len();
-        if let Err(e) = springs.set_parameters(|i| material.parameters(i, stretch)) {
+        let applied = springs
+            .set_parameters(|i| material.parameters(i, stretch))
+            .and_then(|()| springs.set_plasticity(material.plasticity()));
+        if let Err(e) = applied {
             // Refused: the springs keep their old parameters and the surface runs on.
             error!("point-springs surface {entity}: material not applied: {e}");
         }
@@ -135,6 +138,27 @@ pub(crate) fn integrate(
             forces.clear();
         },
     );
+}
+
+/// Plastic flow after each step of a surface whose material yields (rest lengths creep
+/// towards the strain beyond yield; see [`Springs::flow`](crate::core::solver::Springs::flow)).
+pub(crate) fn plastic_flow(
+    time: Res<Time>,
+    mut surfaces: Query<(
+        &SimulationPoints,
+        &mut SurfaceSprings,
+        &SurfaceStatus,
+        &SurfaceSettings,
+    )>,
+) {
+    let dt = time.delta_secs();
+    surfaces
+        .par_iter_mut()
+        .for_each(|(points, mut springs, status, settings)| {
+            if running(status, settings) && !springs.plasticity().is_elastic() {
+                springs.flow(points, dt);
+            }
+        });
 }
 
 /// Resampling when due, then (every tick) the transfer.

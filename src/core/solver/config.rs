@@ -196,9 +196,24 @@ pub struct SpringMaterial {
     pub stretch_damping: f32,
     /// Damping of bend springs.
     pub bend_damping: f32,
+    /// Plasticity: the strain (stretch or compression, relative to the rest length) a spring
+    /// bears elastically; beyond it the rest length creeps (see [`Self::creep_rate`]).
+    pub yield_strain: f32,
+    /// Plasticity: how fast a spring strained beyond [`Self::yield_strain`] takes the excess as
+    /// its new rest length, per second (its excess decays as e^(−rate·t)). 0, the default,
+    /// keeps the material elastic.
+    pub creep_rate: f32,
 }
 
 impl SpringMaterial {
+    /// The material's plastic behaviour.
+    pub fn plasticity(&self) -> Plasticity {
+        Plasticity {
+            yield_strain: self.yield_strain,
+            creep_rate: self.creep_rate,
+        }
+    }
+
     /// The network's stretch springs, then its bend springs, with this material's
     /// stiffness and damping (the order [`Self::parameters`] numbers them in).
     pub fn springs(&self, network: &SpringNetwork) -> Vec<SpringSpec> {
@@ -240,6 +255,60 @@ impl Default for SpringMaterial {
             bend_stiffness: 20.0,
             stretch_damping: 2.0,
             bend_damping: 0.2,
+            yield_strain: DEFAULT_YIELD_STRAIN,
+            creep_rate: 0.0,
         }
+    }
+}
+
+/// The default yield strain of [`SpringMaterial`]: 10 % (used once a creep rate is set).
+pub const DEFAULT_YIELD_STRAIN: f32 = 0.1;
+
+/// Plastic flow of springs (§ "modelling" in the README): a spring strained by more than
+/// `yield_strain` moves its rest length towards the length at which its strain would be the
+/// yield strain, relaxing a fraction 1 − e^(−`creep_rate`·dt) of the way each step. A large
+/// pull thus leaves a permanent shape; below yield the surface returns to rest.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Plasticity {
+    /// Strain borne elastically, finite and not negative.
+    pub yield_strain: f32,
+    /// Relaxation rate of the excess strain, per second, finite and not negative (0: elastic).
+    pub creep_rate: f32,
+}
+
+impl Plasticity {
+    /// No plastic flow.
+    pub const ELASTIC: Self = Self {
+        yield_strain: DEFAULT_YIELD_STRAIN,
+        creep_rate: 0.0,
+    };
+
+    /// Whether rest lengths never change.
+    pub fn is_elastic(&self) -> bool {
+        self.creep_rate == 0.0
+    }
+
+    /// Checks both numbers are finite and not negative.
+    pub fn validate(&self) -> Result<(), SolverError> {
+        for (what, value) in [
+            ("yield strain", self.yield_strain),
+            ("creep rate", self.creep_rate),
+        ] {
+            if !(value.is_finite() && value >= 0.0) {
+                return Err(SolverError::InvalidPlasticity { what, value });
+            }
+        }
+        Ok(())
+    }
+
+    /// The fraction of the excess strain relaxed in a step of `dt` seconds.
+    pub fn fraction(&self, dt: f32) -> f32 {
+        -(-self.creep_rate * dt).exp_m1()
+    }
+}
+
+impl Default for Plasticity {
+    fn default() -> Self {
+        Self::ELASTIC
     }
 }

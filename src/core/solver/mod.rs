@@ -85,7 +85,8 @@ use glam::Vec3;
 use crate::core::network::SpringNetwork;
 
 pub use config::{
-    DampingModel, Integrator, SolverConfig, SpringMaterial, SubstepPolicy, UnknownIntegrator,
+    DEFAULT_YIELD_STRAIN, DampingModel, Integrator, Plasticity, SolverConfig, SpringMaterial,
+    SubstepPolicy, UnknownIntegrator,
 };
 use parts::non_negative;
 pub use parts::{Anchors, ExternalForces, Masses, PointState, Pressure, Springs, hold_still};
@@ -197,12 +198,14 @@ impl Solver {
         material: &SpringMaterial,
         config: SolverConfig,
     ) -> Result<Self, SolverError> {
-        Self::new(
+        let mut solver = Self::new(
             &network.positions,
             &network.masses,
             &material.springs(network),
             config,
-        )
+        )?;
+        solver.springs.set_plasticity(material.plasticity())?;
+        Ok(solver)
     }
 
     /// The read-only parts a step needs.
@@ -392,8 +395,11 @@ impl Solver {
             pressure: self.pressure.as_ref(),
         };
         self.stepper.accumulate_forces(&self.points, model)?;
-        self.stepper
-            .advance(&mut self.points, model, &self.external, dt)
+        let mut report = self
+            .stepper
+            .advance(&mut self.points, model, &self.external, dt)?;
+        report.flowed_springs = self.springs.flow(&self.points, dt);
+        Ok(report)
     }
 
     /// Kinetic, spring, gravitational and anchor energy of the current state.

@@ -18,7 +18,7 @@ pub use anchors::Anchors;
 pub use pressure::Pressure;
 
 use super::springs::SpringLayout;
-use super::{Anchor, AnchorId, STATE_LIMIT, SolverError, SpringSpec};
+use super::{Anchor, AnchorId, Plasticity, STATE_LIMIT, SolverError, SpringSpec};
 
 /// A fresh revision number (never 0, never repeated in a process).
 pub(crate) fn next_revision() -> u64 {
@@ -295,6 +295,7 @@ pub fn hold_still(
 pub struct Springs {
     pub(crate) layout: SpringLayout,
     pub(crate) revision: u64,
+    plasticity: Plasticity,
 }
 
 impl Springs {
@@ -327,6 +328,7 @@ impl Springs {
         Ok(Self {
             layout: SpringLayout::new(springs),
             revision: next_revision(),
+            plasticity: Plasticity::ELASTIC,
         })
     }
 
@@ -391,6 +393,55 @@ impl Springs {
     /// Potential energy ½k(|l| − l⁰)² of the springs at `points`.
     pub fn energy(&self, points: &PointState) -> f64 {
         self.layout.energy(&points.x)
+    }
+
+    /// How the springs yield ([`Plasticity::ELASTIC`] unless set).
+    pub fn plasticity(&self) -> Plasticity {
+        self.plasticity
+    }
+
+    /// Sets how the springs yield (refused, nothing changed, when a number is negative or
+    /// not finite).
+    pub fn set_plasticity(&mut self, plasticity: Plasticity) -> Result<(), SolverError> {
+        plasticity.validate()?;
+        self.plasticity = plasticity;
+        Ok(())
+    }
+
+    /// Plastic flow after a step of `dt` seconds: each spring strained beyond the yield
+    /// strain moves its rest length [`Plasticity::fraction`] of the way to the length at
+    /// which its strain would be the yield strain. Nothing happens to an elastic material.
+    /// Returns how many springs flowed. (The stable-step estimate does not depend on rest
+    /// lengths, so it stays valid.)
+    pub fn flow(&mut self, points: &PointState, dt: f32) -> usize {
+        let p = self.plasticity;
+        if p.is_elastic() || dt.is_nan() || dt <= 0.0 {
+            return 0;
+        }
+        let fraction = p.fraction(dt);
+        let (x, l) = (&points.x, &mut self.layout);
+        let mut flowed = 0;
+        for s in 0..l.len() {
+            if l.is_padding(s) {
+                continue;
+            }
+            let (a, b) = (l.a[s] as usize, l.b[s] as usize);
+            let d = Vec3::new(x.x[b] - x.x[a], x.y[b] - x.y[a], x.z[b] - x.z[a]);
+            let (length, rest) = (d.length(), l.rest[s]);
+            if !(length.is_finite() && rest > 0.0) {
+                continue;
+            }
+            let strain = (length - rest) / rest;
+            if strain.abs() <= p.yield_strain {
+                continue;
+            }
+            // Compression beyond yield means yield_strain < |strain| ≤ 1, so the divisor
+            // stays positive.
+            let at_yield = length / (1.0 + p.yield_strain.copysign(strain));
+            l.rest[s] = rest + fraction * (at_yield - rest);
+            flowed += 1;
+        }
+        flowed
     }
 }
 

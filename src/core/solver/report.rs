@@ -87,6 +87,14 @@ pub enum SolverError {
     /// A setting out of range.
     #[error("invalid solver setting: {0}")]
     InvalidConfig(&'static str),
+    /// A plasticity setting is negative or not finite.
+    #[error("the {what} must be finite and not negative, got {value}")]
+    InvalidPlasticity {
+        /// Which setting.
+        what: &'static str,
+        /// The value given.
+        value: f32,
+    },
     /// The time step is negative or not finite.
     #[error("the time step must be finite and not negative, got {0}")]
     InvalidTimeStep(f32),
@@ -124,6 +132,9 @@ pub struct StepReport {
     pub recovered: bool,
     /// Whether the state is finite after the step (always true with the guard on).
     pub finite: bool,
+    /// Springs whose rest length crept after the step (plastic flow; 0 for an elastic
+    /// material or a step taken through [`Stepper::advance`](super::Stepper::advance) alone).
+    pub flowed_springs: usize,
 }
 
 /// Running totals over a solver's life.
