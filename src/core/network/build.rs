@@ -242,7 +242,7 @@ fn tie_stragglers(
 
 /// Eq 1: each point's area (a third of each of its triangles) and mass (`density` × area;
 /// the mean area where a point has none), and how many points got the mean.
-fn masses_of(
+pub(super) fn masses_of(
     positions: &[Vec3],
     triangles: &[[u32; 3]],
     density: f32,

@@ -39,6 +39,7 @@ mod check;
 mod collapse;
 pub mod mesh;
 mod repair;
+mod reshape;
 
 use crate::core::simplify::{MAX_SIMPLIFY_K, MIN_SIMPLIFY_K, MIN_SIMULATION_POINTS};
 use build::{Adjacency, assemble, build_once};

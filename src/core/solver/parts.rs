@@ -195,6 +195,11 @@ impl PointState {
         self.v.set(i, v);
         Ok(())
     }
+
+    /// Every velocity to zero.
+    pub fn stop(&mut self) {
+        self.v.fill(Vec3::ZERO);
+    }
 }
 
 /// Each point's mass, and which points are pinned (held where they are: their inverse mass
@@ -393,6 +398,36 @@ impl Springs {
     /// Potential energy ½k(|l| − l⁰)² of the springs at `points`.
     pub fn energy(&self, points: &PointState) -> f64 {
         self.layout.energy(&points.x)
+    }
+
+    /// Sets every spring's rest length from its index (`of(index)`, finite and not
+    /// negative; others are refused, nothing changed), keeping stiffness, damping and
+    /// plasticity: baking a shape.
+    pub fn set_rest_lengths(
+        &mut self,
+        mut of: impl FnMut(usize) -> f32,
+    ) -> Result<(), SolverError> {
+        let l = &self.layout;
+        let mut values = Vec::with_capacity(l.len());
+        for s in 0..l.len() {
+            if l.is_padding(s) {
+                values.push(l.rest[s]);
+                continue;
+            }
+            let index = l.order[s] as usize;
+            let rest = of(index);
+            if !non_negative(rest) {
+                return Err(SolverError::InvalidSpringParameter {
+                    spring: index,
+                    what: "rest length",
+                    value: rest,
+                });
+            }
+            values.push(rest);
+        }
+        self.layout.rest = values;
+        self.revision = next_revision();
+        Ok(())
     }
 
     /// How the springs yield ([`Plasticity::ELASTIC`] unless set).

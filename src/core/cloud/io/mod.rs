@@ -324,15 +324,41 @@ fn parse_cloud(bytes: &[u8], format: CloudFormat) -> Result<PointCloud, LoadErro
 }
 
 /// Writes `cloud` as PLY (positions as `float x y z`, normals as `float nx ny nz` when present).
+/// The file is written beside `path` and renamed into place once complete, so a failed write
+/// never leaves a truncated file, and an old file at `path` stays as it was until then.
 pub fn write_ply(path: &Path, cloud: &PointCloud, encoding: PlyEncoding) -> Result<(), SaveError> {
+    write_atomically(path, |mut out| write_ply_to(&mut out, cloud, encoding))
+}
+
+/// Writes a file through `write` into a temporary file in `path`'s directory, flushed to
+/// disk, then renamed to `path`; on any failure the temporary file is removed and `path` is
+/// untouched.
+pub(crate) fn write_atomically(
+    path: &Path,
+    write: impl FnOnce(&mut dyn Write) -> std::io::Result<()>,
+) -> Result<(), SaveError> {
     let err = |source| SaveError {
         path: path.to_owned(),
         source,
     };
-    let file = std::fs::File::create(path).map_err(err)?;
-    let mut out = std::io::BufWriter::new(file);
-    write_ply_to(&mut out, cloud, encoding).map_err(err)?;
-    out.flush().map_err(err)
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    let mut builder = tempfile::Builder::new();
+    builder.prefix(".point-springs-").suffix(".tmp");
+    // Readable like a file `File::create` makes (the umask still applies), not 0600.
+    #[cfg(unix)]
+    builder.permissions(std::os::unix::fs::PermissionsExt::from_mode(0o644));
+    let mut file = builder.tempfile_in(dir).map_err(err)?;
+    {
+        let mut out = std::io::BufWriter::new(file.as_file_mut());
+        write(&mut out).map_err(err)?;
+        out.flush().map_err(err)?;
+    }
+    file.as_file().sync_all().map_err(err)?;
+    file.persist(path).map_err(|e| err(e.error))?;
+    Ok(())
 }
 
 /// Writes `cloud` as PLY to any writer.
@@ -391,6 +417,32 @@ mod tests {
         assert_eq!(CloudFormat::from_path(Path::new("noext")), None);
         assert_eq!("OBJ".parse::<CloudFormat>(), Ok(CloudFormat::Obj));
         assert!("las".parse::<CloudFormat>().is_err());
+    }
+
+    #[test]
+    fn a_failed_write_leaves_the_old_file_and_no_other() {
+        let dir = std::env::temp_dir().join(format!("point-springs-atomic-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("cloud.ply");
+        std::fs::write(&path, b"the old file").unwrap();
+        // Half written, then the disk fills up.
+        let e = write_atomically(&path, |out| {
+            out.write_all(b"half a new fi")?;
+            Err(std::io::Error::other("no space left on device"))
+        })
+        .unwrap_err();
+        assert_eq!(e.path, path);
+        assert_eq!(std::fs::read(&path).unwrap(), b"the old file");
+        assert_eq!(
+            std::fs::read_dir(&dir).unwrap().count(),
+            1,
+            "a temporary file is left"
+        );
+        // A whole write replaces it.
+        write_atomically(&path, |out| out.write_all(b"the new file")).unwrap();
+        assert_eq!(std::fs::read(&path).unwrap(), b"the new file");
+        assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 1);
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]

@@ -1,0 +1,243 @@
+//! The dense surface of a running simulation: the transfer each frame, resampling when due.
+
+use std::path::Path;
+
+use glam::Vec3;
+
+use crate::core::cloud::io::{PlyEncoding, SaveError, write_ply};
+
+use super::*;
+
+/// The dense surface of a running simulation: its rest points and transfer coefficients
+/// (inside the [`Transfer`]), its deformed positions and normals, and the resampling that
+/// keeps it dense where it stretches.
+#[derive(Debug, Clone)]
+pub struct DenseCloud {
+    transfer: Transfer,
+    resample: Option<ResampleConfig>,
+    resampler: Option<Resampler>,
+    positions: Vec<Vec3>,
+    normals: Vec<Vec3>,
+    input: FrameInput,
+    /// Whether `positions` and `normals` follow the positions in `input`.
+    fresh: bool,
+    /// Bumped each time the positions or normals change.
+    revision: u64,
+    /// Points inserted by resampling so far.
+    inserted: usize,
+    /// The step count resampling last looked at (a paused surface is not checked again).
+    maintained_at: u64,
+}
+
+/// The pieces of a frame, for callers that split its rows over threads of their own
+/// (see [`DenseCloud::frame_parts`]).
+#[derive(Debug)]
+pub struct FrameParts<'a> {
+    /// The coefficients.
+    pub transfer: &'a Transfer,
+    /// The simulation state the frame follows.
+    pub input: &'a FrameInput,
+    /// Where the deformed positions go.
+    pub positions: &'a mut [Vec3],
+    /// Where the deformed normals go.
+    pub normals: &'a mut [Vec3],
+}
+
+impl DenseCloud {
+    /// The dense surface at rest, following the transfer's simulation points;
+    /// `resample` says whether and how it resamples.
+    pub fn new(transfer: Transfer, resample: Option<ResampleConfig>) -> Self {
+        Self {
+            positions: transfer.rest_positions().to_vec(),
+            normals: transfer.rest_normals().to_vec(),
+            resampler: resample.map(|_| Resampler::new(&transfer)),
+            transfer,
+            resample,
+            input: FrameInput::default(),
+            fresh: false,
+            revision: 1,
+            inserted: 0,
+            maintained_at: 0,
+        }
+    }
+
+    /// Number of dense points (resampled ones included).
+    pub fn len(&self) -> usize {
+        self.positions.len()
+    }
+
+    /// Whether there are none.
+    pub fn is_empty(&self) -> bool {
+        self.positions.is_empty()
+    }
+
+    /// The transfer coefficients (and the rest points and normals).
+    pub fn transfer(&self) -> &Transfer {
+        &self.transfer
+    }
+
+    /// The deformed positions as of the last frame (the rest positions before the first).
+    pub fn positions(&self) -> &[Vec3] {
+        &self.positions
+    }
+
+    /// The deformed unit normals as of the last frame.
+    pub fn normals(&self) -> &[Vec3] {
+        &self.normals
+    }
+
+    /// Changes each time the positions or normals do (for uploads).
+    pub fn revision(&self) -> u64 {
+        self.revision
+    }
+
+    /// Points resampling has inserted so far.
+    pub fn inserted(&self) -> usize {
+        self.inserted
+    }
+
+    /// The largest distance of a dense point from its rest position.
+    pub fn max_displacement(&self) -> f32 {
+        self.positions
+            .iter()
+            .zip(self.transfer.rest_positions())
+            .map(|(p, r)| p.distance(*r))
+            .fold(0.0, f32::max)
+    }
+
+    /// The deformed surface as a cloud.
+    pub fn to_cloud(&self) -> Result<PointCloud, CloudError> {
+        PointCloud::new(self.positions.clone(), Some(self.normals.clone()))
+    }
+
+    /// Resamples when it is due: resampling is on and `steps` (the simulation steps taken
+    /// so far) is a positive multiple of its interval not looked at before. Inserted points follow the
+    /// simulation from the next frame on.
+    pub fn maintain(
+        &mut self,
+        sim: &PointState,
+        steps: u64,
+    ) -> Result<ResampleReport, ResampleError> {
+        let (Some(config), Some(resampler)) = (self.resample, self.resampler.as_mut()) else {
+            return Ok(ResampleReport::default());
+        };
+        if steps == self.maintained_at || !steps.is_multiple_of(u64::from(config.interval.max(1))) {
+            return Ok(ResampleReport::default());
+        }
+        self.maintained_at = steps;
+        let rest = self.transfer.simulation_rest();
+        let displacements: Vec<Vec3> = sim
+            .iter_positions()
+            .zip(rest)
+            .map(|(p, r)| p - *r)
+            .collect();
+        let report = resampler.resample(&mut self.transfer, &displacements, &config)?;
+        if report.inserted > 0 {
+            self.inserted += report.inserted;
+            let added = &self.transfer.rest_positions()[self.positions.len()..];
+            self.positions.extend_from_slice(added);
+            let added = &self.transfer.rest_normals()[self.normals.len()..];
+            self.normals.extend_from_slice(added);
+            self.fresh = false;
+        }
+        Ok(report)
+    }
+
+    /// Loads the simulation state `sim` for the next frame. Returns false, and the frame
+    /// need not run, when the dense surface already follows exactly this state.
+    pub fn begin_frame(&mut self, sim: &PointState) -> Result<bool, TransferError> {
+        if self.fresh && same_positions(&self.input, sim) {
+            return Ok(false);
+        }
+        self.input
+            .set_positions(&self.transfer, sim.position_arrays())?;
+        self.fresh = false;
+        Ok(true)
+    }
+
+    /// The pieces of the frame [`Self::begin_frame`] loaded, to compute its rows in chunks
+    /// ([`Transfer::frame_rows`]); call [`Self::finish_frame`] afterwards.
+    pub fn frame_parts(&mut self) -> FrameParts<'_> {
+        FrameParts {
+            transfer: &self.transfer,
+            input: &self.input,
+            positions: &mut self.positions,
+            normals: &mut self.normals,
+        }
+    }
+
+    /// Completes a frame whose rows were computed through [`Self::frame_parts`]: PCA
+    /// normals where the settings ask for them, and a new revision.
+    pub fn finish_frame(&mut self) {
+        if let NormalUpdate::Pca(k) = self.transfer.config().normals {
+            self.normals = pca_normals_of(&self.positions, &self.normals, k);
+        }
+        self.fresh = true;
+        self.revision += 1;
+    }
+
+    /// Makes the deformed surface the rest surface (baking): carries `sim` to every dense
+    /// point first, then computes the transfer's coefficients anew from the dense points'
+    /// current positions and normals to the simulation points' current positions.
+    /// Resampling starts again from the new rest surface.
+    pub fn rebase(&mut self, sim: &PointState) -> Result<(), TransferError> {
+        self.follow(sim)?;
+        let transfer = Transfer::new(
+            &self.positions,
+            &self.normals,
+            &sim.positions(),
+            self.transfer.config(),
+        )?;
+        *self = Self {
+            revision: self.revision + 1,
+            inserted: self.inserted,
+            maintained_at: self.maintained_at,
+            ..Self::new(transfer, self.resample)
+        };
+        Ok(())
+    }
+
+    /// Writes the deformed dense surface, positions and normals, as it stands after the last
+    /// [`Self::follow`], to a PLY file. The file is written beside `path` and renamed into
+    /// place, so a failed export never leaves a truncated file (an old one stays as it was).
+    pub fn export(&self, path: &Path, encoding: PlyEncoding) -> Result<(), ExportError> {
+        write_ply(path, &self.to_cloud()?, encoding)?;
+        Ok(())
+    }
+
+    /// Carries the simulation state `sim` to every dense point (the whole frame, on
+    /// rayon's pool when it is large). Returns whether anything was computed: false when
+    /// the dense surface already follows this state.
+    pub fn follow(&mut self, sim: &PointState) -> Result<bool, TransferError> {
+        if !self.begin_frame(sim)? {
+            return Ok(false);
+        }
+        self.transfer
+            .apply_frame(&self.input, &mut self.positions, &mut self.normals)?;
+        self.finish_frame();
+        Ok(true)
+    }
+}
+
+/// Whether the frame input holds exactly the positions of `sim` (bit for bit).
+fn same_positions(input: &FrameInput, sim: &PointState) -> bool {
+    let [x, y, z] = sim.position_arrays();
+    let current = input.current();
+    current.len() == x.len()
+        && current.iter().enumerate().all(|(i, c)| {
+            c.x.to_bits() == x[i].to_bits()
+                && c.y.to_bits() == y[i].to_bits()
+                && c.z.to_bits() == z[i].to_bits()
+        })
+}
+
+/// Why the dense surface could not be exported.
+#[derive(Debug, thiserror::Error)]
+pub enum ExportError {
+    /// The deformed surface is not a valid cloud (a position beyond the coordinate limit).
+    #[error(transparent)]
+    Cloud(#[from] CloudError),
+    /// The file could not be written.
+    #[error(transparent)]
+    Save(#[from] SaveError),
+}
