@@ -54,7 +54,8 @@ pub mod prelude {
     pub use crate::core::network::{NetworkConfig, SpringNetwork, build_network};
     pub use crate::core::normals::{NormalSource, ensure_normals, estimate_normals};
     pub use crate::core::pipeline::{
-        DenseCloud, NormalsSpec, PrepareError, PreparedSurface, SurfaceConfig, prepare_surface,
+        DenseCloud, ExportError, NormalsSpec, PrepareError, PreparedSurface, SurfaceConfig,
+        prepare_surface,
     };
     pub use crate::core::scene::{Scene, SceneError, SceneRun};
     pub use crate::core::simplify::{SimplifyConfig, simplify, simplify_cloud};
@@ -77,9 +78,9 @@ pub mod prelude {
     #[cfg(feature = "plugin")]
     pub use crate::plugin::{
         CloudAsset, DeformableSurface, DenseSurface, GrabMessage, GrabSettings, Grabs,
-        PointSpringsPlugin, PointSpringsSystems, PreparationProgress, SceneAsset, SceneTimeline,
-        SimulationPoints, SurfaceAnchors, SurfaceForces, SurfaceMasses, SurfaceMaterial,
-        SurfaceNetwork, SurfaceSettings, SurfaceSprings, SurfaceStatus, SurfaceStepper,
-        TransferTiming,
+        ModelMessage, ModelOutcome, PointSpringsPlugin, PointSpringsSystems, PreparationProgress,
+        SceneAsset, SceneTimeline, SimulationPoints, SurfaceAnchors, SurfaceForces, SurfaceMasses,
+        SurfaceMaterial, SurfaceNetwork, SurfaceSettings, SurfaceSprings, SurfaceStatus,
+        SurfaceStepper, TransferTiming,
     };
 }

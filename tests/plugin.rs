@@ -430,6 +430,93 @@ fn a_plastic_material_keeps_what_a_grab_pulled_out() {
 }
 
 #[test]
+fn a_baked_surface_keeps_its_shape_and_exports() {
+    let mut app = create_app(&assets_dir(), TICK);
+    let sphere = app.world_mut().spawn(floating(1500, 150)).id();
+    settle(&mut app, &[sphere]);
+    let (_, top_rest) = nearest_point(&app, sphere, Vec3::Y);
+    let (_, bottom_rest) = nearest_point(&app, sphere, -Vec3::Y);
+    // Hold the bottom, pull the top out, let go of both and bake on the next tick.
+    for (key, at) in [(1, bottom_rest), (2, top_rest)] {
+        app.world_mut().write_message(GrabMessage::Start {
+            key,
+            surface: sphere,
+            at,
+        });
+    }
+    app.update();
+    app.world_mut().write_message(GrabMessage::Move {
+        key: 2,
+        target: top_rest + Vec3::Y * 0.3,
+    });
+    for _ in 0..60 {
+        app.update();
+    }
+    app.world_mut().write_message(GrabMessage::End { key: 1 });
+    app.world_mut().write_message(GrabMessage::End { key: 2 });
+    app.update();
+    app.world_mut()
+        .write_message(ModelMessage::Bake { surface: sphere });
+    app.update();
+    let outcomes: Vec<ModelOutcome> = app
+        .world_mut()
+        .resource_mut::<Messages<ModelOutcome>>()
+        .drain()
+        .collect();
+    assert_eq!(outcomes.len(), 1);
+    assert_eq!(outcomes[0].result, Ok(()));
+    let baked = app
+        .world()
+        .get::<SimulationPoints>(sphere)
+        .unwrap()
+        .positions();
+    // Nothing moves from the baked shape.
+    for _ in 0..30 {
+        app.update();
+        let points = app.world().get::<SimulationPoints>(sphere).unwrap();
+        let fastest = points
+            .velocities()
+            .iter()
+            .map(|v| v.length())
+            .fold(0.0, f32::max);
+        assert_eq!(fastest, 0.0);
+    }
+    assert!(
+        app.world()
+            .get::<SimulationPoints>(sphere)
+            .unwrap()
+            .positions()
+            == baked
+    );
+    let top = baked.iter().map(|p| p.y).fold(f32::MIN, f32::max);
+    assert!(top > 1.1, "the baked top is at {top}");
+    // Export, and read it back; an export nowhere fails and the surface runs on.
+    let dir = std::env::temp_dir().join(format!("point-springs-plugin-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("baked.ply");
+    for path in [path.clone(), dir.join("missing").join("baked.ply")] {
+        app.world_mut().write_message(ModelMessage::Export {
+            surface: sphere,
+            path,
+        });
+    }
+    app.update();
+    let outcomes: Vec<ModelOutcome> = app
+        .world_mut()
+        .resource_mut::<Messages<ModelOutcome>>()
+        .drain()
+        .collect();
+    assert_eq!(outcomes[0].result, Ok(()));
+    assert!(outcomes[1].result.is_err());
+    let back = read_cloud(&path, None).unwrap();
+    let dense = app.world().get::<DenseSurface>(sphere).unwrap();
+    assert!(back.positions() == dense.positions());
+    assert!(back.normals().unwrap() == dense.normals());
+    assert!(status(&app, sphere).is_ready());
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
 fn a_grab_dents_the_sphere_and_it_recovers_after_release() {
     let mut app = create_app(&assets_dir(), TICK);
     let sphere = app.world_mut().spawn(floating(1500, 150)).id();

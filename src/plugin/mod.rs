@@ -34,6 +34,7 @@ pub mod components;
 #[cfg(feature = "rapier")]
 pub mod contact;
 pub mod grab;
+pub mod model;
 #[cfg(feature = "render")]
 pub mod pick;
 pub mod prepare;
@@ -53,6 +54,7 @@ pub use components::{
 #[cfg(feature = "rapier")]
 pub use contact::{ContactDiagnostics, SurfaceContact, SurfaceContactPlugin, SurfaceContacts};
 pub use grab::{GrabMessage, GrabSettings, Grabs};
+pub use model::{ModelMessage, ModelOutcome};
 pub use prepare::PreparationPool;
 
 /// The plugin. Add it next to `DefaultPlugins` (or `MinimalPlugins`, plus `AssetPlugin`
@@ -104,6 +106,8 @@ impl Plugin for PointSpringsPlugin {
             .register_type::<PreparationProgress>()
             .register_type::<GrabSettings>()
             .add_message::<GrabMessage>()
+            .add_message::<ModelMessage>()
+            .add_message::<ModelOutcome>()
             .init_resource::<GrabSettings>()
             .init_resource::<Grabs>()
             .configure_sets(
@@ -125,6 +129,7 @@ impl Plugin for PointSpringsPlugin {
                 self.schedule,
                 (
                     (
+                        model::apply_model_requests,
                         grab::apply_grabs,
                         simulate::drive_timelines,
                         simulate::apply_materials,

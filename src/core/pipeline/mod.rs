@@ -33,6 +33,7 @@
 mod bake;
 mod dense;
 
+pub use bake::{BakeParts, bake};
 pub use dense::{DenseCloud, ExportError, FrameParts};
 
 use std::ops::ControlFlow;

@@ -1,0 +1,125 @@
+//! Modelling requests (issue 17): bake a surface's current shape into its rest shape, or
+//! export its deformed dense surface to a PLY file. Send a [`ModelMessage`]; the request is
+//! carried out at the start of the next tick's [`Forces`](super::PointSpringsSystems::Forces)
+//! set, and a [`ModelOutcome`] says how it went (a failure is also logged; the surface runs
+//! on unchanged).
+//!
+//! ```no_run
+//! use bevy::prelude::*;
+//! use bevy_point_springs::prelude::*;
+//!
+//! fn keep_the_shape(mut requests: MessageWriter<ModelMessage>, surface: Single<Entity, With<DeformableSurface>>) {
+//!     requests.write(ModelMessage::Bake { surface: *surface });
+//!     requests.write(ModelMessage::Export { surface: *surface, path: "sculpted.ply".into() });
+//! }
+//! ```
+
+use std::path::PathBuf;
+
+use bevy::prelude::*;
+
+use super::components::{
+    DenseSurface, SimulationPoints, SurfaceMasses, SurfaceMaterial, SurfaceNetwork,
+    SurfacePressure, SurfaceSprings, SurfaceStatus,
+};
+use crate::core::cloud::io::PlyEncoding;
+use crate::core::pipeline::{BakeParts, bake};
+
+/// A modelling request for one surface.
+#[derive(Message, Debug, Clone, PartialEq)]
+pub enum ModelMessage {
+    /// Makes the surface's current shape its rest shape: rest lengths, masses and normals
+    /// measured anew, velocities zero, the dense surface's rest shape its deformed one (see
+    /// [`bake`]). Stiffness, plasticity, pins and grabs are kept.
+    Bake {
+        /// The surface.
+        surface: Entity,
+    },
+    /// Writes the surface's deformed dense surface (positions and normals, in the surface's
+    /// own coordinates) to `path` as binary PLY, beside it first and then renamed into
+    /// place, so a failure never leaves a truncated file.
+    Export {
+        /// The surface.
+        surface: Entity,
+        /// The PLY file to write.
+        path: PathBuf,
+    },
+}
+
+/// How a [`ModelMessage`] went.
+#[derive(Message, Debug, Clone, PartialEq)]
+pub struct ModelOutcome {
+    /// The request.
+    pub request: ModelMessage,
+    /// `Err` with the reason when it was refused or failed (nothing changed then).
+    pub result: Result<(), String>,
+}
+
+/// The parts of a surface a request reads or changes.
+type ModelParts = (
+    &'static mut SurfaceNetwork,
+    &'static mut SimulationPoints,
+    &'static mut SurfaceSprings,
+    &'static mut SurfaceMasses,
+    Option<&'static mut SurfacePressure>,
+    &'static mut DenseSurface,
+    &'static SurfaceMaterial,
+    &'static SurfaceStatus,
+);
+
+/// Carries out the tick's modelling requests, in the order they were sent.
+pub(crate) fn apply_model_requests(
+    mut requests: MessageReader<ModelMessage>,
+    mut outcomes: MessageWriter<ModelOutcome>,
+    mut surfaces: Query<ModelParts>,
+) {
+    for request in requests.read() {
+        let result = carry_out(request, &mut surfaces);
+        if let Err(e) = &result {
+            error!("point-springs: {request:?} failed: {e}");
+        }
+        outcomes.write(ModelOutcome {
+            request: request.clone(),
+            result,
+        });
+    }
+}
+
+/// One request on its surface.
+fn carry_out(request: &ModelMessage, surfaces: &mut Query<ModelParts>) -> Result<(), String> {
+    let (ModelMessage::Bake { surface } | ModelMessage::Export { surface, .. }) = request;
+    let Ok((
+        mut network,
+        mut points,
+        mut springs,
+        mut masses,
+        pressure,
+        mut dense,
+        material,
+        status,
+    )) = surfaces.get_mut(*surface)
+    else {
+        return Err(format!("{surface} is not a prepared surface"));
+    };
+    if !status.is_ready() {
+        return Err(format!("{surface} is not ready ({status:?})"));
+    }
+    match request {
+        ModelMessage::Bake { .. } => {
+            let parts = BakeParts {
+                network: &network.0,
+                points: &mut points.0,
+                springs: &mut springs.0,
+                masses: &mut masses.0,
+                pressure: pressure.map(|p| &mut p.into_inner().0),
+                dense: &mut dense.0,
+            };
+            let baked = bake(parts, material.density).map_err(|e| e.to_string())?;
+            network.0 = baked.into();
+            Ok(())
+        }
+        ModelMessage::Export { path, .. } => dense
+            .export(path, PlyEncoding::BinaryLittleEndian)
+            .map_err(|e| e.to_string()),
+    }
+}
