@@ -80,7 +80,7 @@ pub mod prelude {
         CloudAsset, DeformableSurface, DenseSurface, GrabMessage, GrabSettings, Grabs,
         ModelMessage, ModelOutcome, PointSpringsPlugin, PointSpringsSystems, PreparationProgress,
         SceneAsset, SceneTimeline, SimulationPoints, SurfaceAnchors, SurfaceForces, SurfaceMasses,
-        SurfaceMaterial, SurfaceNetwork, SurfaceSettings, SurfaceSprings, SurfaceStatus,
-        SurfaceStepper, TransferTiming,
+        SurfaceMaterial, SurfaceNetwork, SurfaceSettings, SurfaceSleep, SurfaceSprings,
+        SurfaceStatus, SurfaceStepper, SurfaceWork, TransferTiming,
     };
 }

@@ -9,6 +9,7 @@ use bevy_point_springs::core::cloud::shapes;
 use bevy_point_springs::core::pipeline::SurfaceConfig;
 use bevy_point_springs::core::scene::Scene;
 use bevy_point_springs::core::simplify::SimplifyConfig;
+use bevy_point_springs::plugin::DEFAULT_SLEEP_AFTER;
 use bevy_point_springs::prelude::*;
 
 #[path = "support/plugin_app.rs"]
@@ -185,6 +186,53 @@ fn a_game_system_in_the_force_set_moves_the_surface() {
         (shift.x - since_rest.x).abs() < 0.2 * since_rest.x,
         "{shift} vs {since_rest}"
     );
+}
+
+#[test]
+fn a_hundred_sleeping_surfaces_cost_nothing_and_a_grab_wakes_one() {
+    let mut app = create_app(&assets_dir(), TICK);
+    app.add_systems(FixedUpdate, wind.in_set(PointSpringsSystems::Forces));
+    let blown = app.world_mut().spawn((floating(1500, 150), Windy)).id();
+    let still: Vec<Entity> = (0..100)
+        .map(|_| app.world_mut().spawn(floating(300, 40)).id())
+        .collect();
+    let mut all = still.clone();
+    all.push(blown);
+    settle(&mut app, &all);
+    // Left alone, they sleep after the sleep time; the blown one stays awake.
+    let sleep_ticks = (DEFAULT_SLEEP_AFTER / TICK.as_secs_f32()).ceil() as usize;
+    for _ in 0..sleep_ticks + 2 {
+        app.update();
+    }
+    let asleep = |app: &App, e: Entity| app.world().get::<SurfaceSleep>(e).unwrap().asleep;
+    assert!(still.iter().all(|&e| asleep(&app, e)));
+    assert!(!asleep(&app, blown));
+    let work = |app: &App, e: Entity| *app.world().get::<SurfaceWork>(e).unwrap();
+    let before: Vec<SurfaceWork> = all.iter().map(|&e| work(&app, e)).collect();
+    for _ in 0..60 {
+        app.update();
+    }
+    let spent = |i: usize, e: Entity| {
+        let (a, b) = (work(&app, e), before[i]);
+        (a.springs_evaluated - b.springs_evaluated) + (a.points_transferred - b.points_transferred)
+    };
+    let sleeping: u64 = still.iter().enumerate().map(|(i, &e)| spent(i, e)).sum();
+    let awake = spent(100, blown);
+    println!("60 ticks: 100 sleeping surfaces {sleeping} springs + points, one awake {awake}");
+    assert!(awake > 0);
+    assert!((sleeping as f64) < 0.02 * awake as f64);
+    // A grab wakes a sleeping surface on the next tick.
+    let (_, top) = nearest_point(&app, still[7], Vec3::Y);
+    app.world_mut().write_message(GrabMessage::Start {
+        key: 1,
+        surface: still[7],
+        at: top,
+    });
+    let steps = work(&app, still[7]).steps;
+    app.update();
+    assert!(!asleep(&app, still[7]));
+    assert_eq!(work(&app, still[7]).steps, steps + 1);
+    assert!(asleep(&app, still[8]));
 }
 
 #[test]

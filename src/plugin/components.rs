@@ -68,7 +68,7 @@ pub enum SurfaceSource {
 /// }
 /// ```
 #[derive(Component, Debug, Clone)]
-#[require(SurfaceStatus, SurfaceSettings, Transform)]
+#[require(SurfaceStatus, SurfaceSettings, SurfaceSleep, SurfaceWork, Transform)]
 pub struct DeformableSurface {
     /// Where the dense cloud comes from.
     pub source: SurfaceSource,
@@ -175,6 +175,63 @@ pub struct SurfaceSettings {
     pub transfer: TransferTiming,
     /// Whether the simulation is held (no forces, no steps).
     pub paused: bool,
+    /// When the surface goes to sleep (see [`SurfaceSleep`]).
+    pub sleep: SleepSettings,
+}
+
+/// Speed below which a surface's simulation points count as still, by default (metres per
+/// second, in the surface's own units).
+pub const DEFAULT_SLEEP_SPEED: f32 = 0.002;
+
+/// How long a surface stays still before it sleeps, by default (seconds).
+pub const DEFAULT_SLEEP_AFTER: f32 = 1.0;
+
+/// When a surface goes to sleep: its fastest simulation point has stayed below `speed` for
+/// `after` seconds, with no anchor on it (no grab, no active pull), no force from the game
+/// or from contacts, and its scene timeline (if any) finished.
+#[derive(Debug, Clone, Copy, PartialEq, Reflect)]
+pub struct SleepSettings {
+    /// Speed below which the points count as still; 0 never sleeps.
+    pub speed: f32,
+    /// Seconds still before sleeping.
+    pub after: f32,
+}
+
+impl Default for SleepSettings {
+    fn default() -> Self {
+        Self {
+            speed: DEFAULT_SLEEP_SPEED,
+            after: DEFAULT_SLEEP_AFTER,
+        }
+    }
+}
+
+/// Whether a surface sleeps. A sleeping surface costs nothing per tick: no forces, no step,
+/// no transfer, no upload. It wakes on the tick something acts on it: a grab or any other
+/// anchor, a force from the game or a contact in [`SurfaceForces`], or a change of its
+/// material or settings.
+#[derive(Component, Debug, Clone, Copy, PartialEq, Default, Reflect)]
+#[reflect(Component, Debug, Default)]
+pub struct SurfaceSleep {
+    /// Asleep now.
+    pub asleep: bool,
+    /// Seconds the surface has been still so far (awake).
+    pub still_for: f32,
+    /// Something acted on the surface this tick.
+    #[reflect(ignore)]
+    pub(crate) acted: bool,
+}
+
+/// The work a surface's ticks have done so far, counted (not timed): what sleeping saves.
+#[derive(Component, Debug, Clone, Copy, PartialEq, Eq, Default, Reflect)]
+#[reflect(Component, Debug, Default)]
+pub struct SurfaceWork {
+    /// Steps taken.
+    pub steps: u64,
+    /// Spring evaluations: springs times sub-steps, summed over steps.
+    pub springs_evaluated: u64,
+    /// Dense points carried by the transfer, summed over the frames computed.
+    pub points_transferred: u64,
 }
 
 /// The simulation points' positions and velocities (in the surface's own coordinates).

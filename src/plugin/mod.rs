@@ -41,15 +41,17 @@ pub mod prepare;
 #[cfg(feature = "render")]
 pub mod render;
 pub mod simulate;
+pub mod sleep;
 
 use bevy::ecs::schedule::{InternedScheduleLabel, ScheduleLabel};
 use bevy::prelude::*;
 
 pub use assets::{CloudAsset, CloudLoader, SceneAsset, SceneLoader};
 pub use components::{
-    DeformableSurface, DenseSurface, PreparationProgress, SceneTimeline, SimulationPoints,
-    SurfaceAnchors, SurfaceForces, SurfaceMasses, SurfaceMaterial, SurfaceNetwork, SurfacePressure,
-    SurfaceSettings, SurfaceSource, SurfaceSprings, SurfaceStatus, SurfaceStepper, TransferTiming,
+    DEFAULT_SLEEP_AFTER, DEFAULT_SLEEP_SPEED, DeformableSurface, DenseSurface, PreparationProgress,
+    SceneTimeline, SimulationPoints, SleepSettings, SurfaceAnchors, SurfaceForces, SurfaceMasses,
+    SurfaceMaterial, SurfaceNetwork, SurfacePressure, SurfaceSettings, SurfaceSleep, SurfaceSource,
+    SurfaceSprings, SurfaceStatus, SurfaceStepper, SurfaceWork, TransferTiming,
 };
 #[cfg(feature = "rapier")]
 pub use contact::{ContactDiagnostics, SurfaceContact, SurfaceContactPlugin, SurfaceContacts};
@@ -137,7 +139,12 @@ impl Plugin for PointSpringsPlugin {
                     )
                         .chain()
                         .in_set(PointSpringsSystems::Forces),
-                    (simulate::integrate, simulate::plastic_flow)
+                    (
+                        sleep::wake_surfaces,
+                        simulate::integrate,
+                        simulate::plastic_flow,
+                        sleep::settle_surfaces,
+                    )
                         .chain()
                         .in_set(PointSpringsSystems::Integrate),
                     simulate::transfer_tick.in_set(PointSpringsSystems::Transfer),

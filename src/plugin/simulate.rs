@@ -24,8 +24,8 @@ use crate::core::transfer::TransferError;
 
 use super::components::{
     DenseSurface, ModelQuery, SceneTimeline, SimulationPoints, SurfaceAnchors, SurfaceForces,
-    SurfaceMaterial, SurfaceNetwork, SurfaceSettings, SurfaceSprings, SurfaceStatus,
-    SurfaceStepper, TransferTiming,
+    SurfaceMaterial, SurfaceNetwork, SurfaceSettings, SurfaceSleep, SurfaceSprings, SurfaceStatus,
+    SurfaceStepper, SurfaceWork, TransferTiming,
 };
 
 /// Dense surfaces up to this many points follow the simulation on the calling thread
@@ -98,11 +98,12 @@ pub(crate) fn accumulate_forces(
         &mut SurfaceStepper,
         &mut SurfaceStatus,
         &SurfaceSettings,
+        &SurfaceSleep,
     )>,
 ) {
     surfaces.par_iter_mut().for_each(
-        |(entity, points, parts, mut stepper, mut status, settings)| {
-            if !running(&status, settings) {
+        |(entity, points, parts, mut stepper, mut status, settings, sleep)| {
+            if !running(&status, settings) || sleep.asleep {
                 return;
             }
             if let Err(e) = stepper.accumulate_forces(points, parts.model()) {
@@ -112,28 +113,45 @@ pub(crate) fn accumulate_forces(
     );
 }
 
+/// What [`integrate`] reads and changes of a surface.
+type StepParts = (
+    Entity,
+    &'static mut SimulationPoints,
+    ModelQuery,
+    &'static mut SurfaceForces,
+    &'static mut SurfaceStepper,
+    &'static mut SurfaceStatus,
+    &'static SurfaceSettings,
+    &'static SurfaceSleep,
+    &'static mut SurfaceWork,
+);
+
 /// Each surface steps by the tick's length with the game's forces added; the game's forces
-/// are then cleared.
-pub(crate) fn integrate(
-    time: Res<Time>,
-    mut surfaces: Query<(
-        Entity,
-        &mut SimulationPoints,
-        ModelQuery,
-        &mut SurfaceForces,
-        &mut SurfaceStepper,
-        &mut SurfaceStatus,
-        &SurfaceSettings,
-    )>,
-) {
+/// are then cleared. The work is counted in [`SurfaceWork`].
+pub(crate) fn integrate(time: Res<Time>, mut surfaces: Query<StepParts>) {
     let dt = time.delta_secs();
     surfaces.par_iter_mut().for_each(
-        |(entity, mut points, parts, mut forces, mut stepper, mut status, settings)| {
-            if !running(&status, settings) {
+        |(
+            entity,
+            mut points,
+            parts,
+            mut forces,
+            mut stepper,
+            mut status,
+            settings,
+            sleep,
+            mut work,
+        )| {
+            if !running(&status, settings) || sleep.asleep {
                 return;
             }
-            if let Err(e) = stepper.advance(&mut points, parts.model(), &forces, dt) {
-                fail(entity, &mut status, "step", e);
+            match stepper.advance(&mut points, parts.model(), &forces, dt) {
+                Ok(report) => {
+                    work.steps += 1;
+                    work.springs_evaluated +=
+                        u64::from(report.substeps) * parts.model().springs.len() as u64;
+                }
+                Err(e) => fail(entity, &mut status, "step", e),
             }
             forces.clear();
         },
@@ -149,13 +167,14 @@ pub(crate) fn plastic_flow(
         &mut SurfaceSprings,
         &SurfaceStatus,
         &SurfaceSettings,
+        &SurfaceSleep,
     )>,
 ) {
     let dt = time.delta_secs();
     surfaces
         .par_iter_mut()
-        .for_each(|(points, mut springs, status, settings)| {
-            if running(status, settings) && !springs.plasticity().is_elastic() {
+        .for_each(|(points, mut springs, status, settings, sleep)| {
+            if running(status, settings) && !sleep.asleep && !springs.plasticity().is_elastic() {
                 springs.flow(points, dt);
             }
         });
@@ -170,9 +189,10 @@ pub(crate) fn transfer_tick(
         &mut DenseSurface,
         &mut SurfaceStatus,
         &SurfaceSettings,
+        &mut SurfaceWork,
     )>,
 ) {
-    for (entity, points, stepper, mut dense, mut status, settings) in &mut surfaces {
+    for (entity, points, stepper, mut dense, mut status, settings, mut work) in &mut surfaces {
         if !status.is_ready() {
             continue;
         }
@@ -181,11 +201,24 @@ pub(crate) fn transfer_tick(
             fail(entity, &mut status, "resampling", e);
             continue;
         }
-        if settings.transfer == TransferTiming::EveryTick
-            && let Err(e) = follow(&mut dense, points)
-        {
-            fail(entity, &mut status, "transfer", e);
+        if settings.transfer == TransferTiming::EveryTick {
+            follow_counted(entity, &mut dense, points, &mut status, &mut work);
         }
+    }
+}
+
+/// [`follow`], counting the dense points carried in `work`; a failure fails the surface.
+fn follow_counted(
+    entity: Entity,
+    dense: &mut DenseCloud,
+    points: &PointState,
+    status: &mut SurfaceStatus,
+    work: &mut SurfaceWork,
+) {
+    match follow(dense, points) {
+        Ok(true) => work.points_transferred += dense.len() as u64,
+        Ok(false) => {}
+        Err(e) => fail(entity, status, "transfer", e),
     }
 }
 
@@ -197,14 +230,12 @@ pub(crate) fn transfer_frame(
         &mut DenseSurface,
         &mut SurfaceStatus,
         &SurfaceSettings,
+        &mut SurfaceWork,
     )>,
 ) {
-    for (entity, points, mut dense, mut status, settings) in &mut surfaces {
-        if status.is_ready()
-            && settings.transfer == TransferTiming::PerFrame
-            && let Err(e) = follow(&mut dense, points)
-        {
-            fail(entity, &mut status, "transfer", e);
+    for (entity, points, mut dense, mut status, settings, mut work) in &mut surfaces {
+        if status.is_ready() && settings.transfer == TransferTiming::PerFrame {
+            follow_counted(entity, &mut dense, points, &mut status, &mut work);
         }
     }
 }

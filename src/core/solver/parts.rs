@@ -200,6 +200,14 @@ impl PointState {
     pub fn stop(&mut self) {
         self.v.fill(Vec3::ZERO);
     }
+
+    /// The fastest point's speed.
+    pub fn max_speed(&self) -> f32 {
+        (0..self.len())
+            .map(|i| self.v.get(i).length_squared())
+            .fold(0.0, f32::max)
+            .sqrt()
+    }
 }
 
 /// Each point's mass, and which points are pinned (held where they are: their inverse mass
@@ -535,6 +543,11 @@ impl ExternalForces {
             self.f.fill(Vec3::ZERO);
             self.any = false;
         }
+    }
+
+    /// Whether every force is zero (cheap when none was set since the last clear).
+    pub fn is_zero(&self) -> bool {
+        !self.any || (0..self.len()).all(|i| self.f.get(i) == Vec3::ZERO)
     }
 }
 

@@ -1,0 +1,74 @@
+//! Sleeping surfaces (issue 17): a surface that has stayed still for a while stops costing
+//! anything per tick, and wakes on the tick something acts on it. See [`SurfaceSleep`] and
+//! [`SleepSettings`](super::components::SleepSettings).
+//!
+//! [`wake_surfaces`] runs first in the `Integrate` set, after every system of `Forces` (grabs,
+//! timelines, contacts and the game's forces) had its say; [`settle_surfaces`] runs last,
+//! after the step.
+
+use bevy::prelude::*;
+
+use super::components::{
+    SceneTimeline, SimulationPoints, SurfaceAnchors, SurfaceForces, SurfaceMaterial,
+    SurfaceSettings, SurfaceSleep, SurfaceStatus,
+};
+
+/// What [`wake_surfaces`] reads of a surface to tell whether something acted on it.
+type WakeParts = (
+    &'static mut SurfaceSleep,
+    &'static SurfaceForces,
+    &'static SurfaceAnchors,
+    Ref<'static, SurfaceMaterial>,
+    Ref<'static, SurfaceSettings>,
+);
+
+/// A surface acted on this tick (a force, an anchor, a changed material or settings) is
+/// awake, and its stillness starts again.
+pub(crate) fn wake_surfaces(mut surfaces: Query<WakeParts>) {
+    for (mut sleep, forces, anchors, material, settings) in &mut surfaces {
+        let acted = !anchors.is_empty()
+            || material.is_changed()
+            || settings.is_changed()
+            || !forces.is_zero();
+        if acted {
+            *sleep = SurfaceSleep {
+                acted: true,
+                ..SurfaceSleep::default()
+            };
+        }
+    }
+}
+
+/// After the step: a running surface left alone whose fastest point stays below the sleep
+/// speed for the sleep time goes to sleep, its points stopped.
+pub(crate) fn settle_surfaces(
+    time: Res<Time>,
+    mut surfaces: Query<(
+        &mut SimulationPoints,
+        &mut SurfaceSleep,
+        &SurfaceSettings,
+        &SurfaceStatus,
+        Option<&SceneTimeline>,
+    )>,
+) {
+    let dt = time.delta_secs();
+    for (mut points, mut sleep, settings, status, timeline) in &mut surfaces {
+        if sleep.asleep || !status.is_ready() || settings.paused {
+            continue;
+        }
+        let rule = settings.sleep;
+        let still = !std::mem::take(&mut sleep.acted)
+            && rule.speed > 0.0
+            && timeline.is_none_or(|t| t.finished())
+            && points.max_speed() < rule.speed;
+        if !still {
+            sleep.still_for = 0.0;
+            continue;
+        }
+        sleep.still_for += dt;
+        if sleep.still_for >= rule.after {
+            sleep.asleep = true;
+            points.stop();
+        }
+    }
+}
