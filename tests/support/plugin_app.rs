@@ -147,3 +147,26 @@ pub fn release_mouse(app: &mut App) {
         PointerAction::Release(PointerButton::Primary),
     ));
 }
+
+/// Wind from +X on every point of surfaces marked `Windy`.
+#[derive(Component)]
+pub struct Windy;
+
+/// A steady wind on every [`Windy`] surface (a game's own force system).
+pub fn wind(mut surfaces: Query<&mut SurfaceForces, With<Windy>>) {
+    for mut forces in &mut surfaces {
+        for i in 0..forces.len() {
+            forces.add(i, Vec3::X * 0.05).unwrap();
+        }
+    }
+}
+
+/// The simulation point of `surface` nearest to `p`, and its position.
+pub fn nearest_point(app: &App, surface: Entity, p: Vec3) -> (usize, Vec3) {
+    let points = app.world().get::<SimulationPoints>(surface).unwrap();
+    points
+        .iter_positions()
+        .enumerate()
+        .min_by(|a, b| a.1.distance(p).total_cmp(&b.1.distance(p)))
+        .unwrap()
+}
