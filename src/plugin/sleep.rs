@@ -2,8 +2,8 @@
 //! anything per tick, and wakes on the tick something acts on it. See [`SurfaceSleep`] and
 //! [`SleepSettings`](super::components::SleepSettings).
 //!
-//! [`wake_surfaces`] runs first in the `Integrate` set, after every system of `Forces` (grabs,
-//! timelines, contacts and the game's forces) had its say; [`settle_surfaces`] runs last,
+//! `wake_surfaces` runs first in the `Integrate` set, after every system of `Forces` (grabs,
+//! timelines, contacts and the game's forces) had its say; `settle_surfaces` runs last,
 //! after the step.
 
 use bevy::prelude::*;
