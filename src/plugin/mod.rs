@@ -94,7 +94,9 @@ pub enum PointSpringsSystems {
     /// and gas pressure. Put systems that add to [`SurfaceForces`] here.
     Forces,
     /// Euler stepping (explicit, symplectic or implicit, sub-stepped where needed), with
-    /// the game's forces added.
+    /// the game's forces added; then plastic flow for materials that yield. Sleeping
+    /// surfaces are woken first when something acts on them, and still ones put to sleep
+    /// last ([`sleep`]).
     Integrate,
     /// Displacement transfer (§5): resampling when due, dense positions and normals.
     Transfer,

@@ -4,9 +4,11 @@
 //! * `Forces`: scene timelines move their anchors, material changes reach the springs, then
 //!   each surface's own forces (springs, gravity, drag, anchors, pressure) are accumulated.
 //!   A game's systems in this set add to [`SurfaceForces`].
-//! * `Integrate`: the game's forces are added and each surface takes one step of the tick's
-//!   length (sub-stepped where an explicit integrator needs it); the game's forces are then
-//!   cleared.
+//! * `Integrate`: sleeping surfaces that something acted on wake
+//!   ([`sleep`](super::sleep)); the game's forces are added and each awake surface takes
+//!   one step of the tick's length (sub-stepped where an explicit integrator needs it); the
+//!   game's forces are then cleared; springs of a plastic material flow; surfaces that
+//!   stayed still go to sleep.
 //! * `Transfer`: resampling when due, then the dense surface follows the simulation points
 //!   — skipped when they did not move, and deferred to the frame with
 //!   [`TransferTiming::PerFrame`].
