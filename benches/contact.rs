@@ -20,6 +20,7 @@ use bevy_point_springs::core::cloud::io::read_cloud;
 use bevy_point_springs::core::cloud::shapes;
 use bevy_point_springs::core::pipeline::SurfaceConfig;
 use bevy_point_springs::core::simplify::SimplifyConfig;
+use bevy_point_springs::plugin::SleepSettings;
 use bevy_point_springs::prelude::*;
 use bevy_rapier3d::prelude::*;
 
@@ -140,12 +141,14 @@ fn playground() {
     app.world_mut().spawn((
         DeformableSurface::cloud(sphere, sphere_config),
         Transform::from_translation(sphere_at),
+        awake(),
     ));
     let hat = app
         .world_mut()
         .spawn((
             DeformableSurface::cloud(hat, hat_config),
             Transform::from_translation(hat_at),
+            awake(),
         ))
         .id();
     app.world_mut().spawn((
@@ -163,6 +166,19 @@ fn playground() {
         }
     }
     measure(&mut app, "playground", 12);
+}
+
+/// Settings that never let a surface sleep: the bench times a whole awake tick against the
+/// contacts' share of it, as it did before surfaces could sleep (a sheet with no ball near
+/// would otherwise fall asleep once it settled).
+fn awake() -> SurfaceSettings {
+    SurfaceSettings {
+        sleep: SleepSettings {
+            speed: 0.0,
+            ..default()
+        },
+        ..default()
+    }
 }
 
 fn sheet(far: bool) {
@@ -183,6 +199,7 @@ fn sheet(far: bool) {
         .spawn((
             DeformableSurface::cloud(shapes::square_sheet(10.0, 0.05), config),
             Transform::from_rotation(Quat::from_rotation_x(-std::f32::consts::FRAC_PI_2)),
+            awake(),
         ))
         .id();
     settle(&mut app);

@@ -6,7 +6,9 @@ use std::ops::ControlFlow;
 
 use bevy_point_springs::core::cloud::io::{PlyEncoding, read_cloud};
 use bevy_point_springs::core::cloud::shapes;
-use bevy_point_springs::core::network::{NetworkConfig, SpringNetwork, build_network};
+use bevy_point_springs::core::network::{
+    NetworkConfig, NetworkError, SpringNetwork, build_network,
+};
 use bevy_point_springs::core::pipeline::{
     ExportError, PreparedSurface, SurfaceConfig, prepare_surface,
 };
@@ -256,4 +258,23 @@ fn an_export_reads_back_bit_for_bit_and_a_failed_one_leaves_the_old_file() {
         Err(ExportError::Save(_))
     ));
     std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn reshaping_refuses_bad_shapes_with_typed_errors() {
+    let network = sheet();
+    let mut shape = network.positions.clone();
+    assert!(matches!(
+        network.reshaped(&shape[1..], 1.0),
+        Err(NetworkError::LengthMismatch { .. })
+    ));
+    assert!(matches!(
+        network.reshaped(&shape, 0.0),
+        Err(NetworkError::InvalidDensity(_))
+    ));
+    shape[17] = Vec3::NAN;
+    assert!(matches!(
+        network.reshaped(&shape, 1.0),
+        Err(NetworkError::InvalidPoint(17))
+    ));
 }

@@ -81,13 +81,9 @@ fn a_baked_surface_keeps_its_shape_and_exports() {
     app.world_mut()
         .write_message(ModelMessage::Bake { surface: sphere });
     app.update();
-    let outcomes: Vec<ModelOutcome> = app
-        .world_mut()
-        .resource_mut::<Messages<ModelOutcome>>()
-        .drain()
-        .collect();
-    assert_eq!(outcomes.len(), 1);
-    assert_eq!(outcomes[0].result, Ok(()));
+    let bake_outcome = outcomes(&mut app);
+    assert_eq!(bake_outcome.len(), 1);
+    assert_eq!(bake_outcome[0].result, Ok(()));
     let baked = app
         .world()
         .get::<SimulationPoints>(sphere)
@@ -124,13 +120,21 @@ fn a_baked_surface_keeps_its_shape_and_exports() {
         });
     }
     app.update();
-    let outcomes: Vec<ModelOutcome> = app
-        .world_mut()
-        .resource_mut::<Messages<ModelOutcome>>()
-        .drain()
-        .collect();
-    assert_eq!(outcomes[0].result, Ok(()));
-    assert!(outcomes[1].result.is_err());
+    let exported = outcomes(&mut app);
+    assert_eq!(exported[0].result, Ok(()));
+    assert!(exported[1].result.is_err());
+    // A request for an entity that is no surface is refused, and nothing else happens.
+    let stranger = app.world_mut().spawn_empty().id();
+    app.world_mut()
+        .write_message(ModelMessage::Bake { surface: stranger });
+    app.update();
+    let refused = outcomes(&mut app);
+    assert!(
+        refused[0]
+            .result
+            .as_ref()
+            .is_err_and(|e| e.contains("not a prepared surface"))
+    );
     let back = read_cloud(&path, None).unwrap();
     let dense = app.world().get::<DenseSurface>(sphere).unwrap();
     assert!(back.positions() == dense.positions());
@@ -184,4 +188,12 @@ fn a_hundred_sleeping_surfaces_cost_nothing_and_a_grab_wakes_one() {
     assert!(!asleep(&app, still[7]));
     assert_eq!(work(&app, still[7]).steps, steps + 1);
     assert!(asleep(&app, still[8]));
+}
+
+/// The modelling outcomes sent since the last call.
+fn outcomes(app: &mut App) -> Vec<ModelOutcome> {
+    app.world_mut()
+        .resource_mut::<Messages<ModelOutcome>>()
+        .drain()
+        .collect()
 }

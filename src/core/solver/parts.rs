@@ -375,32 +375,47 @@ impl Springs {
         &mut self,
         mut of: impl FnMut(usize) -> (f32, f32),
     ) -> Result<(), SolverError> {
-        let l = &self.layout;
-        let mut values = Vec::with_capacity(l.len());
-        for s in 0..l.len() {
-            if l.is_padding(s) {
-                values.push((0.0, 0.0));
-                continue;
+        let values = self.by_index(["stiffness", "damping"], |i| {
+            let (k, kd) = of(i);
+            [k, kd]
+        })?;
+        for (s, v) in values.into_iter().enumerate() {
+            if let Some([k, kd]) = v {
+                self.layout.k[s] = k;
+                self.layout.kd[s] = kd;
             }
-            let index = l.order[s] as usize;
-            let (k, kd) = of(index);
-            for (what, value) in [("stiffness", k), ("damping", kd)] {
-                if !non_negative(value) {
-                    return Err(SolverError::InvalidSpringParameter {
-                        spring: index,
-                        what,
-                        value,
-                    });
-                }
-            }
-            values.push((k, kd));
-        }
-        for (s, (k, kd)) in values.into_iter().enumerate() {
-            self.layout.k[s] = k;
-            self.layout.kd[s] = kd;
         }
         self.revision = next_revision();
         Ok(())
+    }
+
+    /// `of(index)` for every spring in storage order (`None` for padding), each of the `N`
+    /// numbers, named by `names`, checked finite and not negative.
+    fn by_index<const N: usize>(
+        &self,
+        names: [&'static str; N],
+        mut of: impl FnMut(usize) -> [f32; N],
+    ) -> Result<Vec<Option<[f32; N]>>, SolverError> {
+        let l = &self.layout;
+        (0..l.len())
+            .map(|s| {
+                if l.is_padding(s) {
+                    return Ok(None);
+                }
+                let index = l.order[s] as usize;
+                let values = of(index);
+                for (what, value) in names.into_iter().zip(values) {
+                    if !non_negative(value) {
+                        return Err(SolverError::InvalidSpringParameter {
+                            spring: index,
+                            what,
+                            value,
+                        });
+                    }
+                }
+                Ok(Some(values))
+            })
+            .collect()
     }
 
     /// Potential energy ½k(|l| − l⁰)² of the springs at `points`.
@@ -415,25 +430,12 @@ impl Springs {
         &mut self,
         mut of: impl FnMut(usize) -> f32,
     ) -> Result<(), SolverError> {
-        let l = &self.layout;
-        let mut values = Vec::with_capacity(l.len());
-        for s in 0..l.len() {
-            if l.is_padding(s) {
-                values.push(l.rest[s]);
-                continue;
+        let values = self.by_index(["rest length"], |i| [of(i)])?;
+        for (s, v) in values.into_iter().enumerate() {
+            if let Some([rest]) = v {
+                self.layout.rest[s] = rest;
             }
-            let index = l.order[s] as usize;
-            let rest = of(index);
-            if !non_negative(rest) {
-                return Err(SolverError::InvalidSpringParameter {
-                    spring: index,
-                    what: "rest length",
-                    value: rest,
-                });
-            }
-            values.push(rest);
         }
-        self.layout.rest = values;
         self.revision = next_revision();
         Ok(())
     }
