@@ -24,6 +24,7 @@ fn main() -> AppExit {
         .add_plugins(DemoPlugin {
             title: "bevy_point_springs — hat",
             args: DemoArgs::from_env(),
+            panel: false,
         })
         .add_systems(Startup, setup)
         .run()

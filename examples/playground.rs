@@ -2,8 +2,8 @@
 //! dropped on them every second and a half, and the mouse to poke and drag.
 //!
 //! ```sh
-//! cargo run --release --features render,rapier --example playground
-//! cargo run --release --features render,rapier --example playground -- --screenshot play.png --frames 240
+//! cargo run --release --features egui,rapier --example playground
+//! cargo run --release --features egui,rapier --example playground -- --screenshot play.png --frames 240
 //! ```
 //!
 //! The sphere (3203 points, 338 simulation points, gas inside) sits on the floor under
@@ -11,7 +11,8 @@
 //! in a ring above the floor. Both are [`DeformableSurface`]s; the floor and the balls are bevy_rapier3d bodies.
 //! [`SurfaceContactPlugin`] makes every simulation point a small sphere that rapier's
 //! colliders push, and pushes them back. Left-drag pokes and pulls a surface, right-drag
-//! orbits, the wheel zooms, G shows the simulation points and springs, Space pauses.
+//! orbits, the wheel zooms, G shows the simulation points and springs, Space pauses. Built
+//! with the `egui` feature it shows the live panel (figures, plots, settings, bake, export).
 
 mod utils;
 
@@ -55,6 +56,7 @@ fn main() -> AppExit {
             DemoPlugin {
                 title: "bevy_point_springs — playground",
                 args: DemoArgs::from_env(),
+                panel: true,
             },
             RapierPhysicsPlugin::<NoUserData>::default().in_fixed_schedule(),
             SurfaceContactPlugin::default(),
@@ -107,6 +109,7 @@ fn setup(
         ..default()
     };
     commands.spawn((
+        Name::new("sphere"),
         DeformableSurface::cloud_asset(assets.load("sphere3203.ply"), sphere),
         SurfelRender::default(),
         Transform::from_translation(SPHERE_AT),
@@ -117,6 +120,7 @@ fn setup(
         ..default()
     };
     commands.spawn((
+        Name::new("hat"),
         Hat,
         DeformableSurface::cloud_asset(assets.load("hat3000.ply"), hat),
         SurfelRender {

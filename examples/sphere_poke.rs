@@ -23,6 +23,7 @@ fn main() -> AppExit {
         .add_plugins(DemoPlugin {
             title: "bevy_point_springs — sphere_poke",
             args: DemoArgs::from_env(),
+            panel: false,
         })
         .add_systems(Startup, setup)
         .add_systems(Update, move_finger)

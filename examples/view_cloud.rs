@@ -22,6 +22,7 @@ fn main() -> AppExit {
         .add_plugins(DemoPlugin {
             title: "bevy_point_springs — view_cloud",
             args,
+            panel: false,
         })
         .add_systems(Startup, setup)
         .add_systems(Update, frame_the_surface)

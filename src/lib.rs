@@ -71,6 +71,8 @@ pub mod prelude {
     pub use crate::plugin::contact::{
         ContactDiagnostics, SurfaceContact, SurfaceContactPlugin, SurfaceContacts,
     };
+    #[cfg(feature = "egui")]
+    pub use crate::plugin::panel::{PointSpringsPanelPlugin, SurfacePanel};
     #[cfg(feature = "render")]
     pub use crate::plugin::pick::{PointerGrabSettings, PointerGrabs, SurfacePickingPlugin};
     #[cfg(feature = "render")]
@@ -79,8 +81,9 @@ pub mod prelude {
     pub use crate::plugin::{
         CloudAsset, DeformableSurface, DenseSurface, GrabMessage, GrabSettings, Grabs,
         ModelMessage, ModelOutcome, PointSpringsPlugin, PointSpringsSystems, PreparationProgress,
-        SceneAsset, SceneTimeline, SimulationPoints, SurfaceAnchors, SurfaceForces, SurfaceMasses,
-        SurfaceMaterial, SurfaceNetwork, SurfaceSettings, SurfaceSleep, SurfaceSprings,
-        SurfaceStatus, SurfaceStepper, SurfaceWork, TransferTiming,
+        PrepareAgain, PrepareAgainFailed, SceneAsset, SceneTimeline, SimulationPoints, StepOnce,
+        SurfaceAnchors, SurfaceForces, SurfaceInView, SurfaceMasses, SurfaceMaterial,
+        SurfaceNetwork, SurfaceSettings, SurfaceSleep, SurfaceSprings, SurfaceStatus,
+        SurfaceStepper, SurfaceTimings, SurfaceWork, TransferTiming,
     };
 }

@@ -197,3 +197,147 @@ fn outcomes(app: &mut App) -> Vec<ModelOutcome> {
         .drain()
         .collect()
 }
+
+#[test]
+fn a_paused_surface_steps_once_on_request_and_resets_to_rest() {
+    let mut app = create_app(&assets_dir(), TICK);
+    app.add_systems(FixedUpdate, wind.in_set(PointSpringsSystems::Forces));
+    let sphere = app.world_mut().spawn((floating(1500, 150), Windy)).id();
+    settle(&mut app, &[sphere]);
+    // Plastic, so that the wind leaves rest lengths changed for the reset to undo.
+    let mut material = app.world_mut().get_mut::<SurfaceMaterial>(sphere).unwrap();
+    material.yield_strain = 0.01;
+    material.creep_rate = 5.0;
+    for _ in 0..60 {
+        app.update();
+    }
+    let timings = *app.world().get::<SurfaceTimings>(sphere).unwrap();
+    println!("one tick of 150 points under wind: {timings:?}");
+    assert!(timings.forces_ms > 0.0 && timings.step_ms > 0.0 && timings.transfer_ms > 0.0);
+    let steps = |app: &App| app.world().get::<SurfaceWork>(sphere).unwrap().steps;
+    app.world_mut()
+        .get_mut::<SurfaceSettings>(sphere)
+        .unwrap()
+        .paused = true;
+    app.update();
+    let paused_at = steps(&app);
+    app.update();
+    assert_eq!(steps(&app), paused_at, "a paused surface stepped");
+    app.world_mut().entity_mut(sphere).insert(StepOnce);
+    app.update();
+    assert_eq!(steps(&app), paused_at + 1, "StepOnce is one step");
+    assert!(app.world().get::<StepOnce>(sphere).is_none());
+    app.update();
+    assert_eq!(
+        steps(&app),
+        paused_at + 1,
+        "StepOnce stepped more than once"
+    );
+
+    let energy = |app: &App| {
+        let world = app.world();
+        let springs = world.get::<SurfaceSprings>(sphere).unwrap();
+        springs.energy(world.get::<SimulationPoints>(sphere).unwrap())
+    };
+    let strained = energy(&app);
+    assert!(strained > 0.0);
+    app.world_mut()
+        .write_message(ModelMessage::Reset { surface: sphere });
+    app.update();
+    assert_eq!(outcomes(&mut app)[0].result, Ok(()));
+    let world = app.world();
+    let points = world.get::<SimulationPoints>(sphere).unwrap();
+    let network = world.get::<SurfaceNetwork>(sphere).unwrap();
+    assert_eq!(points.positions(), network.positions);
+    assert_eq!(points.max_speed(), 0.0);
+    // Rest lengths back from their plastic flow: no spring is stretched (but for rounding:
+    // lengths are measured in f32).
+    let left = energy(&app);
+    println!("spring energy {strained:.3e} before the reset, {left:.3e} after");
+    assert!(left < 1e-6 * strained);
+}
+
+#[test]
+fn a_surface_out_of_view_simulates_without_transfer() {
+    let mut app = create_app(&assets_dir(), TICK);
+    app.add_systems(FixedUpdate, wind.in_set(PointSpringsSystems::Forces));
+    let sphere = app.world_mut().spawn((floating(1500, 150), Windy)).id();
+    settle(&mut app, &[sphere]);
+    app.update();
+    let work = |app: &App| *app.world().get::<SurfaceWork>(sphere).unwrap();
+    let dense = |app: &App| app.world().get::<DenseSurface>(sphere).unwrap().positions()[0];
+    app.world_mut()
+        .entity_mut(sphere)
+        .insert(SurfaceInView(false));
+    let (before, at) = (work(&app), dense(&app));
+    for _ in 0..30 {
+        app.update();
+    }
+    let hidden = work(&app);
+    assert_eq!(hidden.steps, before.steps + 30);
+    assert_eq!(hidden.points_transferred, before.points_transferred);
+    assert_eq!(dense(&app), at, "the dense surface moved out of view");
+    // Seen again: the transfer catches up on the next tick.
+    app.world_mut()
+        .entity_mut(sphere)
+        .insert(SurfaceInView(true));
+    app.update();
+    assert_eq!(
+        work(&app).points_transferred,
+        hidden.points_transferred + 1500
+    );
+    assert_ne!(dense(&app), at);
+}
+
+#[test]
+fn preparing_again_keeps_the_old_surface_running_until_the_new_one_is_ready() {
+    let mut app = create_app(&assets_dir(), TICK);
+    app.add_systems(FixedUpdate, wind.in_set(PointSpringsSystems::Forces));
+    let sphere = app.world_mut().spawn((floating(3000, 150), Windy)).id();
+    settle(&mut app, &[sphere]);
+    let points = |app: &App| app.world().get::<SimulationPoints>(sphere).unwrap().len();
+    let steps = |app: &App| app.world().get::<SurfaceWork>(sphere).unwrap().steps;
+    assert_eq!(points(&app), 150);
+    let mut config = app.world().get::<DeformableSurface>(sphere).unwrap().config;
+    config.simplify.target = Some(400);
+    app.world_mut()
+        .entity_mut(sphere)
+        .insert(PrepareAgain(config));
+    app.update();
+    assert!(app.world().get::<PreparationProgress>(sphere).is_some());
+    let started = steps(&app);
+    let deadline = std::time::Instant::now() + SETTLE_TIMEOUT;
+    while app.world().get::<PreparationProgress>(sphere).is_some() {
+        assert!(std::time::Instant::now() < deadline, "never prepared");
+        assert!(status(&app, sphere).is_ready());
+        app.update();
+        std::thread::sleep(std::time::Duration::from_millis(1));
+    }
+    println!(
+        "prepared again to {} points while the old one took {} steps",
+        points(&app),
+        steps(&app) - started
+    );
+    assert!(
+        steps(&app) > started,
+        "the old surface stopped while preparing"
+    );
+    assert!(points(&app) >= 400, "{} points", points(&app));
+    assert!(status(&app, sphere).is_ready());
+
+    // Settings that cannot work: the surface runs on as it was, and says why.
+    config.normals = NormalsSpec::Estimate(2);
+    app.world_mut()
+        .entity_mut(sphere)
+        .insert(PrepareAgain(config));
+    let before = points(&app);
+    while app.world().get::<PrepareAgainFailed>(sphere).is_none() {
+        assert!(std::time::Instant::now() < deadline, "never failed");
+        app.update();
+    }
+    assert_eq!(points(&app), before);
+    assert!(status(&app, sphere).is_ready());
+    let steps_then = steps(&app);
+    app.update();
+    assert_eq!(steps(&app), steps_then + 1);
+}

@@ -98,6 +98,8 @@ pub struct DemoPlugin {
     pub title: &'static str,
     /// Parsed options.
     pub args: DemoArgs,
+    /// Show the live panel (built with the `egui` feature; without it, a note in the log).
+    pub panel: bool,
 }
 
 impl Plugin for DemoPlugin {
@@ -127,6 +129,9 @@ impl Plugin for DemoPlugin {
             Update,
             (orbit_camera, keys, show_status, screenshot_and_exit),
         );
+        if self.panel {
+            add_panel(app);
+        }
         if self.args.gizmos {
             app.insert_resource(SpringGizmos {
                 points: true,
@@ -141,6 +146,21 @@ impl Plugin for DemoPlugin {
             )));
         }
     }
+}
+
+/// The live panel; input over it (drags, scrolls) is the panel's, not the scene's.
+#[cfg(feature = "egui")]
+fn add_panel(app: &mut App) {
+    app.add_plugins(PointSpringsPanelPlugin)
+        .insert_resource(bevy_egui::EguiGlobalSettings {
+            enable_absorb_bevy_input_system: true,
+            ..default()
+        });
+}
+
+#[cfg(not(feature = "egui"))]
+fn add_panel(_app: &mut App) {
+    info!("the live panel needs the `egui` feature: cargo run --features egui,...");
 }
 
 /// The material of the props around a surface (the cup, the ring).

@@ -68,7 +68,15 @@ pub enum SurfaceSource {
 /// }
 /// ```
 #[derive(Component, Debug, Clone)]
-#[require(SurfaceStatus, SurfaceSettings, SurfaceSleep, SurfaceWork, Transform)]
+#[require(
+    SurfaceStatus,
+    SurfaceSettings,
+    SurfaceSleep,
+    SurfaceWork,
+    SurfaceTimings,
+    SurfaceInView,
+    Transform
+)]
 pub struct DeformableSurface {
     /// Where the dense cloud comes from.
     pub source: SurfaceSource,
@@ -233,6 +241,50 @@ pub struct SurfaceWork {
     /// Dense points carried by the transfer, summed over the frames computed.
     pub points_transferred: u64,
 }
+
+/// How long the latest work on a surface took, in milliseconds of this machine's wall
+/// clock (what the panel shows; 0 for work skipped: a paused or sleeping surface, a transfer
+/// with nothing moved).
+#[derive(Component, Debug, Clone, Copy, PartialEq, Default, Reflect)]
+#[reflect(Component, Debug, Default)]
+pub struct SurfaceTimings {
+    /// Accumulating the surface's own forces, the last tick.
+    pub forces_ms: f32,
+    /// The step (all its sub-steps) and plastic flow, the last tick.
+    pub step_ms: f32,
+    /// Resampling and the transfer to the dense points, the last time it ran.
+    pub transfer_ms: f32,
+    /// Copying the dense points into the surfel buffer, the last frame (feature `render`).
+    pub upload_ms: f32,
+}
+
+impl SurfaceTimings {
+    /// Forces, step and transfer: the surface's share of a tick.
+    pub fn tick_ms(&self) -> f32 {
+        self.forces_ms + self.step_ms + self.transfer_ms
+    }
+}
+
+/// Whether a camera sees the surface. A surface out of view keeps simulating but skips the
+/// transfer (and so the upload) until it is seen again, when the transfer catches up from
+/// the current state at once. With the `render` feature the plugin sets it every frame
+/// from the cameras' frusta and the surface's bounds; without it the surface counts as
+/// seen unless a game says otherwise.
+#[derive(Component, Debug, Clone, Copy, PartialEq, Eq, Reflect, Deref)]
+#[reflect(Component, Debug, Default)]
+pub struct SurfaceInView(pub bool);
+
+impl Default for SurfaceInView {
+    fn default() -> Self {
+        Self(true)
+    }
+}
+
+/// A paused surface with this component takes one step on the next tick (transfer
+/// included); the plugin then removes the component. A running surface ignores it.
+#[derive(Component, Debug, Clone, Copy, Default, Reflect)]
+#[reflect(Component, Debug, Default)]
+pub struct StepOnce;
 
 /// The simulation points' positions and velocities (in the surface's own coordinates).
 #[derive(Component, Debug, Clone, Default, Deref, DerefMut)]

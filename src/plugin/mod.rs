@@ -35,6 +35,8 @@ pub mod components;
 pub mod contact;
 pub mod grab;
 pub mod model;
+#[cfg(feature = "egui")]
+pub mod panel;
 #[cfg(feature = "render")]
 pub mod pick;
 pub mod prepare;
@@ -42,6 +44,8 @@ pub mod prepare;
 pub mod render;
 pub mod simulate;
 pub mod sleep;
+#[cfg(feature = "render")]
+pub mod view;
 
 use bevy::ecs::schedule::{InternedScheduleLabel, ScheduleLabel};
 use bevy::prelude::*;
@@ -49,15 +53,16 @@ use bevy::prelude::*;
 pub use assets::{CloudAsset, CloudLoader, SceneAsset, SceneLoader};
 pub use components::{
     DEFAULT_SLEEP_AFTER, DEFAULT_SLEEP_SPEED, DeformableSurface, DenseSurface, PreparationProgress,
-    SceneTimeline, SimulationPoints, SleepSettings, SurfaceAnchors, SurfaceForces, SurfaceMasses,
-    SurfaceMaterial, SurfaceNetwork, SurfacePressure, SurfaceSettings, SurfaceSleep, SurfaceSource,
-    SurfaceSprings, SurfaceStatus, SurfaceStepper, SurfaceWork, TransferTiming,
+    SceneTimeline, SimulationPoints, SleepSettings, StepOnce, SurfaceAnchors, SurfaceForces,
+    SurfaceInView, SurfaceMasses, SurfaceMaterial, SurfaceNetwork, SurfacePressure,
+    SurfaceSettings, SurfaceSleep, SurfaceSource, SurfaceSprings, SurfaceStatus, SurfaceStepper,
+    SurfaceTimings, SurfaceWork, TransferTiming,
 };
 #[cfg(feature = "rapier")]
 pub use contact::{ContactDiagnostics, SurfaceContact, SurfaceContactPlugin, SurfaceContacts};
 pub use grab::{GrabMessage, GrabSettings, Grabs};
 pub use model::{ModelMessage, ModelOutcome};
-pub use prepare::PreparationPool;
+pub use prepare::{PreparationPool, PrepareAgain, PrepareAgainFailed};
 
 /// The plugin. Add it next to `DefaultPlugins` (or `MinimalPlugins`, plus `AssetPlugin`
 /// for files).
@@ -108,6 +113,9 @@ impl Plugin for PointSpringsPlugin {
             .register_type::<SurfaceSettings>()
             .register_type::<SurfaceMaterial>()
             .register_type::<PreparationProgress>()
+            .register_type::<SurfaceTimings>()
+            .register_type::<SurfaceInView>()
+            .register_type::<StepOnce>()
             .register_type::<GrabSettings>()
             .add_message::<GrabMessage>()
             .add_message::<ModelMessage>()

@@ -1,5 +1,5 @@
-//! Modelling requests (issue 17): bake a surface's current shape into its rest shape, or
-//! export its deformed dense surface to a PLY file. Send a [`ModelMessage`]; the request is
+//! Modelling requests (issue 17): bake a surface's current shape into its rest shape,
+//! export its deformed dense surface to a PLY file, or reset it to its rest shape. Send a [`ModelMessage`]; the request is
 //! carried out at the start of the next tick's [`Forces`](super::PointSpringsSystems::Forces)
 //! set, and a [`ModelOutcome`] says how it went (a failure is also logged; the surface runs
 //! on unchanged).
@@ -19,8 +19,8 @@ use std::path::PathBuf;
 use bevy::prelude::*;
 
 use super::components::{
-    DenseSurface, SimulationPoints, SurfaceMasses, SurfaceMaterial, SurfaceNetwork,
-    SurfacePressure, SurfaceSprings, SurfaceStatus,
+    DenseSurface, SceneTimeline, SimulationPoints, SurfaceAnchors, SurfaceMasses, SurfaceMaterial,
+    SurfaceNetwork, SurfacePressure, SurfaceSprings, SurfaceStatus,
 };
 use crate::core::cloud::io::PlyEncoding;
 use crate::core::pipeline::{BakeParts, bake};
@@ -44,6 +44,25 @@ pub enum ModelMessage {
         /// The PLY file to write.
         path: PathBuf,
     },
+    /// Puts the surface back in its rest shape (as prepared, or as last baked): points at
+    /// their rest positions and still, springs at their rest lengths (plastic flow since
+    /// then undone), a scene's timeline started again. Pins, masses and the game's anchors
+    /// (grabs) are kept.
+    Reset {
+        /// The surface.
+        surface: Entity,
+    },
+}
+
+impl ModelMessage {
+    /// The surface the request is for.
+    pub fn surface(&self) -> Entity {
+        match self {
+            Self::Bake { surface } | Self::Export { surface, .. } | Self::Reset { surface } => {
+                *surface
+            }
+        }
+    }
 }
 
 /// How a [`ModelMessage`] went.
@@ -65,6 +84,8 @@ type ModelParts = (
     &'static mut DenseSurface,
     &'static SurfaceMaterial,
     &'static SurfaceStatus,
+    &'static mut SurfaceAnchors,
+    Option<&'static mut SceneTimeline>,
 );
 
 /// Carries out the tick's modelling requests, in the order they were sent.
@@ -87,7 +108,7 @@ pub(crate) fn apply_model_requests(
 
 /// One request on its surface.
 fn carry_out(request: &ModelMessage, surfaces: &mut Query<ModelParts>) -> Result<(), String> {
-    let (ModelMessage::Bake { surface } | ModelMessage::Export { surface, .. }) = request;
+    let surface = &request.surface();
     let Ok((
         mut network,
         mut points,
@@ -97,6 +118,8 @@ fn carry_out(request: &ModelMessage, surfaces: &mut Query<ModelParts>) -> Result
         mut dense,
         material,
         status,
+        mut anchors,
+        timeline,
     )) = surfaces.get_mut(*surface)
     else {
         return Err(format!("{surface} is not a prepared surface"));
@@ -121,5 +144,18 @@ fn carry_out(request: &ModelMessage, surfaces: &mut Query<ModelParts>) -> Result
         ModelMessage::Export { path, .. } => dense
             .export(path, PlyEncoding::BinaryLittleEndian)
             .map_err(|e| e.to_string()),
+        ModelMessage::Reset { .. } => {
+            springs
+                .set_rest_lengths(|i| network.rest_length(i))
+                .map_err(|e| e.to_string())?;
+            for (i, &p) in network.positions.iter().enumerate() {
+                points.set_position(i, p).map_err(|e| e.to_string())?;
+            }
+            points.stop();
+            if let Some(mut timeline) = timeline {
+                timeline.restart(&mut anchors);
+            }
+            Ok(())
+        }
     }
 }

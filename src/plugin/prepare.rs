@@ -6,6 +6,10 @@
 //! `Pending`) drops the task, which tells the pipeline to stop at its next progress
 //! report.
 //!
+//! **Preparing again.** A [`PrepareAgain`] on a ready surface prepares it with new settings
+//! (the panel's simplification level, say) in the background while the old simulation runs
+//! on; the new one replaces it when it is ready, or [`PrepareAgainFailed`] says why not.
+//!
 //! **Threads.** The pipeline's own parallel loops use rayon. Inside a Bevy app they run in
 //! a rayon pool of the plugin's ([`PreparationPool`]) with as many threads as Bevy's async
 //! compute pool has, not in rayon's global pool (one thread per core): Bevy's compute pool
@@ -57,6 +61,19 @@ impl PreparationPool {
     }
 }
 
+/// Prepares a surface again with these settings. On a ready surface the old simulation
+/// keeps running until the new one is ready (with [`PreparationProgress`] present
+/// meanwhile); on any other it is a fresh start. A scene keeps its cloud, pins and pulls
+/// and takes these settings; its timeline starts again. The plugin removes the component
+/// when it starts the work.
+#[derive(Component, Debug, Clone, PartialEq)]
+pub struct PrepareAgain(pub SurfaceConfig);
+
+/// Why the last [`PrepareAgain`] of a ready surface failed; the old simulation ran on.
+/// Removed when another starts.
+#[derive(Component, Debug, Clone, PartialEq)]
+pub struct PrepareAgainFailed(pub String);
+
 /// What a finished preparation hands over.
 struct Prepared {
     surface: PreparedSurface,
@@ -102,6 +119,8 @@ impl Shared {
 pub(crate) struct PreparationTask {
     task: Task<Result<Prepared, String>>,
     shared: Arc<Shared>,
+    /// Whether the surface's old simulation runs on meanwhile ([`PrepareAgain`]).
+    background: bool,
 }
 
 impl Drop for PreparationTask {
@@ -170,10 +189,21 @@ pub(crate) fn start_preparation(
     server: Option<Res<AssetServer>>,
     scenes: Option<Res<Assets<SceneAsset>>>,
     clouds: Option<Res<Assets<CloudAsset>>>,
-    mut surfaces: Query<(Entity, &mut DeformableSurface, &mut SurfaceStatus)>,
+    mut surfaces: Query<(
+        Entity,
+        &mut DeformableSurface,
+        &mut SurfaceStatus,
+        Option<&PrepareAgain>,
+    )>,
 ) {
-    for (entity, mut surface, mut status) in &mut surfaces {
-        if !matches!(*status, SurfaceStatus::Pending | SurfaceStatus::Loading) {
+    for (entity, mut surface, mut status, again) in &mut surfaces {
+        let background = again.is_some() && status.is_ready();
+        let fresh = match *status {
+            SurfaceStatus::Pending | SurfaceStatus::Loading => true,
+            SurfaceStatus::Failed(_) => again.is_some(),
+            SurfaceStatus::Preparing | SurfaceStatus::Ready => false,
+        };
+        if !(background || fresh) {
             continue;
         }
         let found = inputs(
@@ -182,10 +212,12 @@ pub(crate) fn start_preparation(
             scenes.as_deref(),
             clouds.as_deref(),
         );
-        let (cloud, scene) = match found {
+        let (cloud, mut scene) = match found {
             Inputs::Ready(found) => *found,
             Inputs::Waiting => {
-                status.set_if_neq(SurfaceStatus::Loading);
+                if !background {
+                    status.set_if_neq(SurfaceStatus::Loading);
+                }
                 continue;
             }
             Inputs::Failed(message) => {
@@ -207,6 +239,15 @@ pub(crate) fn start_preparation(
                 }
             },
         };
+        if let Some(PrepareAgain(config)) = again {
+            if let Some(scene) = &mut scene {
+                scene.set_surface_config(config);
+            }
+            surface.config = *config;
+            commands
+                .entity(entity)
+                .remove::<(PrepareAgain, PrepareAgainFailed)>();
+        }
         if let Some(scene) = &scene {
             surface.config = scene.surface_config();
         }
@@ -218,10 +259,16 @@ pub(crate) fn start_preparation(
                 .install(|| prepare(cloud, scene, &config, &task_shared))
         });
         commands.entity(entity).insert((
-            PreparationTask { task, shared },
+            PreparationTask {
+                task,
+                shared,
+                background,
+            },
             PreparationProgress::at(Stage::Normals, 0.0),
         ));
-        *status = SurfaceStatus::Preparing;
+        if !background {
+            *status = SurfaceStatus::Preparing;
+        }
     }
 }
 
@@ -263,7 +310,12 @@ pub(crate) fn finish_preparation(
     )>,
 ) {
     for (entity, mut task, mut progress, mut status) in &mut surfaces {
-        if *status != SurfaceStatus::Preparing {
+        let expected = if task.background {
+            SurfaceStatus::Ready
+        } else {
+            SurfaceStatus::Preparing
+        };
+        if *status != expected {
             // Set back to Pending (or failed elsewhere) while preparing: drop the job.
             commands
                 .entity(entity)
@@ -280,6 +332,10 @@ pub(crate) fn finish_preparation(
             Ok(prepared) => {
                 insert_simulation(&mut entity_commands, prepared);
                 *status = SurfaceStatus::Ready;
+            }
+            Err(message) if task.background => {
+                error!("point-springs surface {entity}: preparing again: {message}");
+                entity_commands.insert(PrepareAgainFailed(message));
             }
             Err(message) => {
                 error!("point-springs surface {entity}: {message}");

@@ -14,6 +14,7 @@
 //! springs in two colours.
 
 use std::collections::HashMap;
+use std::time::Instant;
 
 use bevy::asset::{AssetPath, RenderAssetUsages, embedded_asset, embedded_path};
 use bevy::camera::visibility::NoFrustumCulling;
@@ -31,7 +32,9 @@ use bevy::render::storage::ShaderBuffer;
 use bevy::shader::{ShaderDefVal, ShaderRef};
 
 use super::PointSpringsSystems;
-use super::components::{DenseSurface, SimulationPoints, SurfaceNetwork, SurfaceSprings};
+use super::components::{
+    DenseSurface, SimulationPoints, SurfaceNetwork, SurfaceSprings, SurfaceTimings,
+};
 use crate::core::cloud::surfels::{DEFAULT_SURFEL_SCALE, SURFEL_BYTES, pack_surfels, surfel_radii};
 
 /// Corners of a surfel's hexagon.
@@ -75,6 +78,7 @@ impl Plugin for SurfelRenderPlugin {
                     .after(PointSpringsSystems::Transfer),
             )
             .add_systems(Update, draw_gizmos);
+        super::view::add_systems(app);
     }
 }
 
@@ -372,32 +376,40 @@ impl Batch {
     }
 }
 
-/// Rewrites each batch's buffer where one of its surfaces changed.
+/// Rewrites each batch's buffer where one of its surfaces changed; each surface's packing
+/// is timed in [`SurfaceTimings::upload_ms`].
 fn upload_surfels(
     batches: Res<SurfelBatches>,
     mut buffers: ResMut<Assets<ShaderBuffer>>,
-    mut surfaces: Query<(&DenseSurface, &mut SurfelSlot)>,
+    mut surfaces: Query<(&DenseSurface, &mut SurfelSlot, &mut SurfaceTimings)>,
 ) {
     for batch in batches.batches.values() {
         let changed = batch.members.iter().any(|&(e, ..)| {
             surfaces
                 .get(e)
-                .is_ok_and(|(dense, slot)| slot.uploaded != dense.revision())
+                .is_ok_and(|(dense, slot, _)| slot.uploaded != dense.revision())
         });
         if !changed {
+            for &(entity, ..) in &batch.members {
+                if let Ok((.., mut timings)) = surfaces.get_mut(entity) {
+                    timings.upload_ms = 0.0;
+                }
+            }
             continue;
         }
         // A new buffer each frame: it is moved to the render world (one pass over the
         // bytes; packing into a kept buffer and cloning it would be two).
         let mut packed = Vec::with_capacity(batch.capacity * SURFEL_BYTES);
         for &(entity, first, _) in &batch.members {
-            let Ok((dense, mut slot)) = surfaces.get_mut(entity) else {
+            let Ok((dense, mut slot, mut timings)) = surfaces.get_mut(entity) else {
                 continue;
             };
+            let start = Instant::now();
             // Unused surfels (radius 0) up to the slot's start draw nothing.
             packed.resize(first * SURFEL_BYTES, 0);
             pack_surfels(dense.positions(), dense.normals(), &slot.radii, &mut packed);
             slot.uploaded = dense.revision();
+            timings.upload_ms = start.elapsed().as_secs_f32() * 1e3;
         }
         packed.resize(batch.capacity * SURFEL_BYTES, 0);
         if let Some(mut buffer) = buffers.get_mut(&batch.buffer) {

@@ -10,12 +10,17 @@
 //!   game's forces are then cleared; springs of a plastic material flow; surfaces that
 //!   stayed still go to sleep.
 //! * `Transfer`: resampling when due, then the dense surface follows the simulation points
-//!   — skipped when they did not move, and deferred to the frame with
-//!   [`TransferTiming::PerFrame`].
+//!   — skipped when they did not move or no camera sees the surface ([`SurfaceInView`]),
+//!   and deferred to the frame with [`TransferTiming::PerFrame`].
+//!
+//! Each surface's share of the tick is timed in [`SurfaceTimings`]; a paused surface with
+//! [`StepOnce`] takes a single step.
 //!
 //! Surfaces are independent, so the per-surface work of `Forces` and `Integrate` runs in
 //! parallel over surfaces on Bevy's compute pool; a large dense surface splits its transfer
 //! over the same pool.
+
+use std::time::Instant;
 
 use bevy::prelude::*;
 use bevy::tasks::ComputeTaskPool;
@@ -25,18 +30,50 @@ use crate::core::solver::{PointState, SpringMaterial};
 use crate::core::transfer::TransferError;
 
 use super::components::{
-    DenseSurface, ModelQuery, SceneTimeline, SimulationPoints, SurfaceAnchors, SurfaceForces,
-    SurfaceMaterial, SurfaceNetwork, SurfaceSettings, SurfaceSleep, SurfaceSprings, SurfaceStatus,
-    SurfaceStepper, SurfaceWork, TransferTiming,
+    DenseSurface, ModelQuery, SceneTimeline, SimulationPoints, StepOnce, SurfaceAnchors,
+    SurfaceForces, SurfaceInView, SurfaceMaterial, SurfaceNetwork, SurfaceSettings, SurfaceSleep,
+    SurfaceSprings, SurfaceStatus, SurfaceStepper, SurfaceTimings, SurfaceWork, TransferTiming,
 };
 
 /// Dense surfaces up to this many points follow the simulation on the calling thread
 /// (handing the work to other threads costs more than it saves).
 pub const PARALLEL_TRANSFER_POINTS: usize = 16_384;
 
-/// Whether a surface steps this tick.
-fn running(status: &SurfaceStatus, settings: &SurfaceSettings) -> bool {
-    status.is_ready() && !settings.paused
+/// Whether a surface steps this tick: ready, and not paused unless asked for one step
+/// ([`StepOnce`]).
+fn running(status: &SurfaceStatus, settings: &SurfaceSettings, step_once: bool) -> bool {
+    status.is_ready() && (!settings.paused || step_once)
+}
+
+/// What [`running`] reads besides the status: the settings, and whether one step was asked
+/// for.
+type Gate = (&'static SurfaceSettings, Has<StepOnce>);
+
+/// What [`accumulate_forces`] reads and changes of a surface.
+type ForceParts = (
+    Entity,
+    &'static SimulationPoints,
+    ModelQuery,
+    &'static mut SurfaceStepper,
+    &'static mut SurfaceStatus,
+    Gate,
+    &'static SurfaceSleep,
+    &'static mut SurfaceTimings,
+);
+
+/// What [`plastic_flow`] reads and changes of a surface.
+type FlowParts = (
+    &'static SimulationPoints,
+    &'static mut SurfaceSprings,
+    &'static SurfaceStatus,
+    Gate,
+    &'static SurfaceSleep,
+    &'static mut SurfaceTimings,
+);
+
+/// Milliseconds since `start`.
+fn ms_since(start: Instant) -> f32 {
+    start.elapsed().as_secs_f32() * 1e3
 }
 
 /// Marks a surface failed and says why in the log.
@@ -53,11 +90,12 @@ pub(crate) fn drive_timelines(
         &mut SurfaceAnchors,
         &SurfaceNetwork,
         &mut SurfaceStatus,
-        &SurfaceSettings,
+        Gate,
     )>,
 ) {
-    for (entity, mut timeline, mut anchors, network, mut status, settings) in &mut surfaces {
-        if !running(&status, settings) || timeline.finished() {
+    for (entity, mut timeline, mut anchors, network, mut status, (settings, once)) in &mut surfaces
+    {
+        if !running(&status, settings, once) || timeline.finished() {
             continue;
         }
         if let Err(e) = timeline.advance(&mut anchors, &network.positions) {
@@ -92,25 +130,19 @@ pub(crate) fn apply_materials(
 }
 
 /// Each surface's own forces at the state the tick starts from.
-pub(crate) fn accumulate_forces(
-    mut surfaces: Query<(
-        Entity,
-        &SimulationPoints,
-        ModelQuery,
-        &mut SurfaceStepper,
-        &mut SurfaceStatus,
-        &SurfaceSettings,
-        &SurfaceSleep,
-    )>,
-) {
+pub(crate) fn accumulate_forces(mut surfaces: Query<ForceParts>) {
     surfaces.par_iter_mut().for_each(
-        |(entity, points, parts, mut stepper, mut status, settings, sleep)| {
-            if !running(&status, settings) || sleep.asleep {
+        |(entity, points, parts, mut stepper, mut status, (settings, once), sleep, mut timings)| {
+            if !running(&status, settings, once) || sleep.asleep {
+                timings.forces_ms = 0.0;
+                timings.step_ms = 0.0;
                 return;
             }
+            let start = Instant::now();
             if let Err(e) = stepper.accumulate_forces(points, parts.model()) {
                 fail(entity, &mut status, "forces", e);
             }
+            timings.forces_ms = ms_since(start);
         },
     );
 }
@@ -123,9 +155,9 @@ type StepParts = (
     &'static mut SurfaceForces,
     &'static mut SurfaceStepper,
     &'static mut SurfaceStatus,
-    &'static SurfaceSettings,
+    Gate,
     &'static SurfaceSleep,
-    &'static mut SurfaceWork,
+    (&'static mut SurfaceWork, &'static mut SurfaceTimings),
 );
 
 /// Each surface steps by the tick's length with the game's forces added; the game's forces
@@ -140,13 +172,14 @@ pub(crate) fn integrate(time: Res<Time>, mut surfaces: Query<StepParts>) {
             mut forces,
             mut stepper,
             mut status,
-            settings,
+            (settings, once),
             sleep,
-            mut work,
+            (mut work, mut timings),
         )| {
-            if !running(&status, settings) || sleep.asleep {
+            if !running(&status, settings, once) || sleep.asleep {
                 return;
             }
+            let start = Instant::now();
             match stepper.advance(&mut points, parts.model(), &forces, dt) {
                 Ok(report) => {
                     work.steps += 1;
@@ -156,48 +189,61 @@ pub(crate) fn integrate(time: Res<Time>, mut surfaces: Query<StepParts>) {
                 Err(e) => fail(entity, &mut status, "step", e),
             }
             forces.clear();
+            timings.step_ms = ms_since(start);
         },
     );
 }
 
 /// Plastic flow after each step of a surface whose material yields (rest lengths creep
 /// towards the strain beyond yield; see [`Springs::flow`](crate::core::solver::Springs::flow)).
-pub(crate) fn plastic_flow(
-    time: Res<Time>,
-    mut surfaces: Query<(
-        &SimulationPoints,
-        &mut SurfaceSprings,
-        &SurfaceStatus,
-        &SurfaceSettings,
-        &SurfaceSleep,
-    )>,
-) {
+pub(crate) fn plastic_flow(time: Res<Time>, mut surfaces: Query<FlowParts>) {
     let dt = time.delta_secs();
-    surfaces
-        .par_iter_mut()
-        .for_each(|(points, mut springs, status, settings, sleep)| {
-            if running(status, settings) && !sleep.asleep && !springs.plasticity().is_elastic() {
+    surfaces.par_iter_mut().for_each(
+        |(points, mut springs, status, (settings, once), sleep, mut timings)| {
+            if running(status, settings, once)
+                && !sleep.asleep
+                && !springs.plasticity().is_elastic()
+            {
+                let start = Instant::now();
                 springs.flow(points, dt);
+                timings.step_ms += ms_since(start);
             }
-        });
+        },
+    );
 }
 
-/// Resampling when due, then (every tick) the transfer.
-pub(crate) fn transfer_tick(
-    mut surfaces: Query<(
-        Entity,
-        &SimulationPoints,
-        &SurfaceStepper,
-        &mut DenseSurface,
-        &mut SurfaceStatus,
-        &SurfaceSettings,
-        &mut SurfaceWork,
-    )>,
-) {
-    for (entity, points, stepper, mut dense, mut status, settings, mut work) in &mut surfaces {
+/// What the transfer systems read and change of a surface.
+type TransferParts = (
+    Entity,
+    &'static SimulationPoints,
+    &'static SurfaceStepper,
+    &'static mut DenseSurface,
+    &'static mut SurfaceStatus,
+    (&'static SurfaceSettings, &'static SurfaceInView),
+    (&'static mut SurfaceWork, &'static mut SurfaceTimings),
+);
+
+/// Resampling when due, then (every tick) the transfer; both wait while the surface is out
+/// of view.
+pub(crate) fn transfer_tick(mut surfaces: Query<TransferParts>) {
+    for (
+        entity,
+        points,
+        stepper,
+        mut dense,
+        mut status,
+        (settings, in_view),
+        (mut work, mut timings),
+    ) in &mut surfaces
+    {
         if !status.is_ready() {
             continue;
         }
+        if !in_view.0 {
+            timings.transfer_ms = 0.0;
+            continue;
+        }
+        let start = Instant::now();
         let steps = stepper.diagnostics().steps;
         if let Err(e) = dense.maintain(points, steps) {
             fail(entity, &mut status, "resampling", e);
@@ -206,6 +252,7 @@ pub(crate) fn transfer_tick(
         if settings.transfer == TransferTiming::EveryTick {
             follow_counted(entity, &mut dense, points, &mut status, &mut work);
         }
+        timings.transfer_ms = ms_since(start);
     }
 }
 
@@ -224,20 +271,15 @@ fn follow_counted(
     }
 }
 
-/// The transfer of surfaces that follow once per rendered frame.
-pub(crate) fn transfer_frame(
-    mut surfaces: Query<(
-        Entity,
-        &SimulationPoints,
-        &mut DenseSurface,
-        &mut SurfaceStatus,
-        &SurfaceSettings,
-        &mut SurfaceWork,
-    )>,
-) {
-    for (entity, points, mut dense, mut status, settings, mut work) in &mut surfaces {
-        if status.is_ready() && settings.transfer == TransferTiming::PerFrame {
+/// The transfer of surfaces that follow once per rendered frame (and are in view).
+pub(crate) fn transfer_frame(mut surfaces: Query<TransferParts>) {
+    for (entity, points, _, mut dense, mut status, (settings, in_view), (mut work, mut timings)) in
+        &mut surfaces
+    {
+        if status.is_ready() && in_view.0 && settings.transfer == TransferTiming::PerFrame {
+            let start = Instant::now();
             follow_counted(entity, &mut dense, points, &mut status, &mut work);
+            timings.transfer_ms = ms_since(start);
         }
     }
 }

@@ -9,7 +9,7 @@
 use bevy::prelude::*;
 
 use super::components::{
-    SceneTimeline, SimulationPoints, SurfaceAnchors, SurfaceForces, SurfaceMaterial,
+    SceneTimeline, SimulationPoints, StepOnce, SurfaceAnchors, SurfaceForces, SurfaceMaterial,
     SurfaceSettings, SurfaceSleep, SurfaceStatus,
 };
 
@@ -20,15 +20,17 @@ type WakeParts = (
     &'static SurfaceAnchors,
     Ref<'static, SurfaceMaterial>,
     Ref<'static, SurfaceSettings>,
+    Has<StepOnce>,
 );
 
-/// A surface acted on this tick (a force, an anchor, a changed material or settings) is
-/// awake, and its stillness starts again.
+/// A surface acted on this tick (a force, an anchor, a changed material or settings, a
+/// single step asked for) is awake, and its stillness starts again.
 pub(crate) fn wake_surfaces(mut surfaces: Query<WakeParts>) {
-    for (mut sleep, forces, anchors, material, settings) in &mut surfaces {
+    for (mut sleep, forces, anchors, material, settings, step_once) in &mut surfaces {
         let acted = !anchors.is_empty()
             || material.is_changed()
             || settings.is_changed()
+            || step_once
             || !forces.is_zero();
         if acted {
             *sleep = SurfaceSleep {
@@ -40,9 +42,12 @@ pub(crate) fn wake_surfaces(mut surfaces: Query<WakeParts>) {
 }
 
 /// After the step: a running surface left alone whose fastest point stays below the sleep
-/// speed for the sleep time goes to sleep, its points stopped.
+/// speed for the sleep time goes to sleep, its points stopped. A single step asked for
+/// ([`StepOnce`]) has been taken.
 pub(crate) fn settle_surfaces(
+    mut commands: Commands,
     time: Res<Time>,
+    single_steps: Query<Entity, With<StepOnce>>,
     mut surfaces: Query<(
         &mut SimulationPoints,
         &mut SurfaceSleep,
@@ -51,6 +56,9 @@ pub(crate) fn settle_surfaces(
         Option<&SceneTimeline>,
     )>,
 ) {
+    for entity in &single_steps {
+        commands.entity(entity).remove::<StepOnce>();
+    }
     let dt = time.delta_secs();
     for (mut points, mut sleep, settings, status, timeline) in &mut surfaces {
         if sleep.asleep || !status.is_ready() || settings.paused {

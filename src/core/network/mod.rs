@@ -214,6 +214,18 @@ pub struct SpringNetwork {
 }
 
 impl SpringNetwork {
+    /// Rest length of spring `i`, counting the stretch springs first and then the bend
+    /// springs (the order of the solver's [`Springs`](crate::core::solver::Springs)).
+    ///
+    /// # Panics
+    /// When `i` is not below the number of springs.
+    pub fn rest_length(&self, i: usize) -> f32 {
+        match i.checked_sub(self.stretch.len()) {
+            None => self.stretch[i].rest_length,
+            Some(b) => self.bend[b].rest_length,
+        }
+    }
+
     /// The consistent ring of point `i`.
     pub fn ring(&self, i: usize) -> &[u32] {
         &self.ring_indices[self.ring_offsets[i] as usize..self.ring_offsets[i + 1] as usize]

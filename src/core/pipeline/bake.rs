@@ -38,13 +38,8 @@ pub fn bake(parts: BakeParts<'_>, density: f32) -> Result<SpringNetwork, Prepare
         dense,
     } = parts;
     let network = network.reshaped(&points.positions(), density)?;
-    let stretch = network.stretch.len();
-    let rest = |i: usize| match i.checked_sub(stretch) {
-        None => network.stretch[i].rest_length,
-        Some(b) => network.bend[b].rest_length,
-    };
     let mut new_springs = springs.clone();
-    new_springs.set_rest_lengths(rest)?;
+    new_springs.set_rest_lengths(|i| network.rest_length(i))?;
     let mut new_masses = Masses::new(&network.masses)?;
     for i in (0..masses.len()).filter(|&i| masses.is_pinned(i)) {
         new_masses.set_pinned(i, true)?;

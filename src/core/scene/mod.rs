@@ -289,6 +289,27 @@ impl Scene {
         }
     }
 
+    /// Takes the surface settings of `config` (normals, simplification, material, solver,
+    /// transfer, resampling, pressure); the cloud, step, pins and pulls stay.
+    pub fn set_surface_config(&mut self, config: &SurfaceConfig) {
+        let SurfaceConfig {
+            normals,
+            simplify,
+            material,
+            solver,
+            transfer,
+            resample,
+            pressure,
+        } = *config;
+        self.normals = normals;
+        self.simplify = simplify;
+        self.material = material;
+        self.solver = solver;
+        self.transfer = transfer;
+        self.resample = resample;
+        self.pressure = pressure;
+    }
+
     /// Checks every setting.
     pub fn validate(&self) -> Result<(), SceneError> {
         if !(self.dt > 0.0 && self.dt.is_finite()) {
@@ -399,6 +420,62 @@ mod tests {
     use super::*;
 
     const MINIMAL: &str = r#"(cloud: "a.ply", simplify: (target: Some(50)), dt: 0.01, steps: 10)"#;
+
+    #[test]
+    fn a_surface_config_goes_in_and_comes_out_and_a_timeline_restarts() {
+        let mut s = Scene::from_ron(
+            r#"(cloud: "a.ply", simplify: (target: Some(50)), dt: 0.01, steps: 10,
+                pulls: [(at: (1.0, 0.0, 0.0), to: (1.0, 0.0, 0.0), to_end: Some((2.0, 0.0, 0.0)),
+                         start: 2, stiffness: 10.0, damping: 0.0)])"#,
+        )
+        .unwrap();
+        let mut config = s.surface_config();
+        config.simplify.target = Some(80);
+        config.material.creep_rate = 3.0;
+        s.set_surface_config(&config);
+        assert_eq!(s.surface_config(), config);
+        assert_eq!(s.pulls.len(), 1, "pulls stay");
+
+        let rest = [Vec3::X, Vec3::Y, Vec3::NEG_X];
+        let mut timeline = Timeline::new(&s, &rest);
+        let mut anchors = Anchors::default();
+        let game = anchors
+            .add(
+                Anchor {
+                    point: 1,
+                    target: Vec3::Y,
+                    stiffness: 1.0,
+                    damping: 0.0,
+                },
+                rest.len(),
+            )
+            .unwrap();
+        let run = |timeline: &mut Timeline, anchors: &mut Anchors| {
+            for _ in 0..5 {
+                timeline.advance(anchors, &rest).unwrap();
+            }
+            anchors
+                .live()
+                .map(|a| (a.point, a.target))
+                .collect::<Vec<_>>()
+        };
+        let first = run(&mut timeline, &mut anchors);
+        assert_eq!(first.len(), 2, "the pull's anchor and the game's");
+        timeline.restart(&mut anchors);
+        assert_eq!(timeline.step(), 0);
+        assert_eq!(anchors.live().count(), 1, "the game's anchor stays");
+        assert!(anchors.get(game).is_some());
+        let again = run(&mut timeline, &mut anchors);
+        let sorted = |mut v: Vec<(u32, Vec3)>| {
+            v.sort_by_key(|a| a.0);
+            v
+        };
+        assert_eq!(
+            sorted(again),
+            sorted(first),
+            "the same pull, from the start"
+        );
+    }
 
     #[test]
     fn defaults_fill_the_rest() {

@@ -125,4 +125,15 @@ impl Timeline {
         self.step += 1;
         Ok(())
     }
+
+    /// Starts the timeline again from its first step: the anchors its pulls hold are
+    /// removed from `anchors` (other anchors, a game's grabs, stay).
+    pub fn restart(&mut self, anchors: &mut Anchors) {
+        for active in &mut self.pulls {
+            for id in active.anchors.drain(..) {
+                anchors.remove(id);
+            }
+        }
+        self.step = 0;
+    }
 }
