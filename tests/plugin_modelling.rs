@@ -298,6 +298,15 @@ fn preparing_again_keeps_the_old_surface_running_until_the_new_one_is_ready() {
     let points = |app: &App| app.world().get::<SimulationPoints>(sphere).unwrap().len();
     let steps = |app: &App| app.world().get::<SurfaceWork>(sphere).unwrap().steps;
     assert_eq!(points(&app), 150);
+    // Held while it is prepared again: the grab goes with the old simulation's anchors.
+    let (_, top) = nearest_point(&app, sphere, Vec3::Y);
+    app.world_mut().write_message(GrabMessage::Start {
+        key: 5,
+        surface: sphere,
+        at: top,
+    });
+    app.update();
+    assert!(app.world().resource::<Grabs>().get(5).is_some());
     let mut config = app.world().get::<DeformableSurface>(sphere).unwrap().config;
     config.simplify.target = Some(400);
     app.world_mut()
@@ -322,6 +331,7 @@ fn preparing_again_keeps_the_old_surface_running_until_the_new_one_is_ready() {
         steps(&app) > started,
         "the old surface stopped while preparing"
     );
+    assert!(app.world().resource::<Grabs>().get(5).is_none());
     assert!(points(&app) >= 400, "{} points", points(&app));
     assert!(status(&app, sphere).is_ready());
 

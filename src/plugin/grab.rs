@@ -114,6 +114,12 @@ impl Grabs {
         self.active.is_empty()
     }
 
+    /// Ends every grab of `surface` without touching its anchors (they were replaced: the
+    /// surface was prepared again).
+    pub(crate) fn forget_surface(&mut self, surface: Entity) {
+        self.active.retain(|_, g| g.surface != surface);
+    }
+
     /// The surface and the number of points held by the grab with `key`.
     pub fn get(&self, key: u64) -> Option<(Entity, usize)> {
         self.active.get(&key).map(|g| (g.surface, g.held.len()))

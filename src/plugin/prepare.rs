@@ -36,6 +36,7 @@ use super::components::{
     SurfaceAnchors, SurfaceForces, SurfaceMasses, SurfaceMaterial, SurfaceNetwork, SurfacePressure,
     SurfaceSource, SurfaceSprings, SurfaceStatus, SurfaceStepper,
 };
+use super::grab::Grabs;
 
 /// The rayon pool surfaces are prepared in (see the module docs).
 #[derive(Resource, Clone)]
@@ -302,6 +303,7 @@ fn prepare(
 /// or the status says why it failed.
 pub(crate) fn finish_preparation(
     mut commands: Commands,
+    mut grabs: ResMut<Grabs>,
     mut surfaces: Query<(
         Entity,
         &mut PreparationTask,
@@ -330,6 +332,10 @@ pub(crate) fn finish_preparation(
         entity_commands.remove::<(PreparationTask, PreparationProgress)>();
         match result {
             Ok(prepared) => {
+                if task.background {
+                    // The old anchors go with the old simulation: so do grabs holding them.
+                    grabs.forget_surface(entity);
+                }
                 insert_simulation(&mut entity_commands, prepared);
                 *status = SurfaceStatus::Ready;
             }
