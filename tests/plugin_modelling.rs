@@ -201,18 +201,28 @@ fn outcomes(app: &mut App) -> Vec<ModelOutcome> {
 #[test]
 fn a_paused_surface_steps_once_on_request_and_resets_to_rest() {
     let mut app = create_app(&assets_dir(), TICK);
-    app.add_systems(FixedUpdate, wind.in_set(PointSpringsSystems::Forces));
-    let sphere = app.world_mut().spawn((floating(1500, 150), Windy)).id();
+    let sphere = app.world_mut().spawn(floating(1500, 150)).id();
     settle(&mut app, &[sphere]);
-    // Plastic, so that the wind leaves rest lengths changed for the reset to undo.
+    // Plastic and pulled, so that rest lengths flow for the reset to undo; held, so that
+    // it keeps moving.
     let mut material = app.world_mut().get_mut::<SurfaceMaterial>(sphere).unwrap();
-    material.yield_strain = 0.01;
+    material.yield_strain = 0.05;
     material.creep_rate = 5.0;
+    let (_, top) = nearest_point(&app, sphere, Vec3::Y);
+    app.world_mut().write_message(GrabMessage::Start {
+        key: 1,
+        surface: sphere,
+        at: top,
+    });
+    app.world_mut().write_message(GrabMessage::Move {
+        key: 1,
+        target: top + Vec3::Y * 0.4,
+    });
     for _ in 0..60 {
         app.update();
     }
     let timings = *app.world().get::<SurfaceTimings>(sphere).unwrap();
-    println!("one tick of 150 points under wind: {timings:?}");
+    println!("one tick of 150 points, pulled: {timings:?}");
     assert!(timings.forces_ms > 0.0 && timings.step_ms > 0.0 && timings.transfer_ms > 0.0);
     let steps = |app: &App| app.world().get::<SurfaceWork>(sphere).unwrap().steps;
     app.world_mut()
@@ -241,6 +251,21 @@ fn a_paused_surface_steps_once_on_request_and_resets_to_rest() {
     };
     let strained = energy(&app);
     assert!(strained > 0.0);
+    let flowed = |app: &App| {
+        let world = app.world();
+        let network = world.get::<SurfaceNetwork>(sphere).unwrap();
+        let springs = world.get::<SurfaceSprings>(sphere).unwrap();
+        springs
+            .iter()
+            .filter(|(i, spec)| spec.rest_length != network.rest_length(*i))
+            .count()
+    };
+    let crept = flowed(&app);
+    println!("{crept} springs crept under the pull");
+    assert!(
+        crept > 0,
+        "no spring flowed: the reset would have nothing to undo"
+    );
     app.world_mut()
         .write_message(ModelMessage::Reset { surface: sphere });
     app.update();
@@ -250,6 +275,7 @@ fn a_paused_surface_steps_once_on_request_and_resets_to_rest() {
     let network = world.get::<SurfaceNetwork>(sphere).unwrap();
     assert_eq!(points.positions(), network.positions);
     assert_eq!(points.max_speed(), 0.0);
+    assert_eq!(flowed(&app), 0);
     // Rest lengths back from their plastic flow: no spring is stretched (but for rounding:
     // lengths are measured in f32).
     let left = energy(&app);
@@ -347,6 +373,10 @@ fn preparing_again_keeps_the_old_surface_running_until_the_new_one_is_ready() {
     }
     assert_eq!(points(&app), before);
     assert!(status(&app, sphere).is_ready());
+    // The surface's settings are those it runs with, not those that failed.
+    let kept = app.world().get::<DeformableSurface>(sphere).unwrap().config;
+    assert_eq!(kept.simplify.target, Some(400));
+    assert_ne!(kept.normals, NormalsSpec::Estimate(2));
     let steps_then = steps(&app);
     app.update();
     assert_eq!(steps(&app), steps_then + 1);

@@ -243,8 +243,9 @@ pub struct SurfaceWork {
 }
 
 /// How long the latest work on a surface took, in milliseconds of this machine's wall
-/// clock (what the panel shows; 0 for work skipped: a paused or sleeping surface, a transfer
-/// with nothing moved).
+/// clock (what the panel shows). Forces and step are 0 while the surface is paused or
+/// asleep, the transfer 0 while it is out of view (and only the check that nothing moved
+/// when nothing did), the upload 0 in a frame that uploaded nothing of its batch.
 #[derive(Component, Debug, Clone, Copy, PartialEq, Default, Reflect)]
 #[reflect(Component, Debug, Default)]
 pub struct SurfaceTimings {
@@ -266,10 +267,11 @@ impl SurfaceTimings {
 }
 
 /// Whether a camera sees the surface. A surface out of view keeps simulating but skips the
-/// transfer (and so the upload) until it is seen again, when the transfer catches up from
-/// the current state at once. With the `render` feature the plugin sets it every frame
-/// from the cameras' frusta and the surface's bounds; without it the surface counts as
-/// seen unless a game says otherwise.
+/// transfer (so its surfels stop changing) until it is seen again, when the transfer
+/// catches up from the current state in the same frame. For surfaces drawn by
+/// [`SurfelRenderPlugin`](super::render) (those with `SurfelRender`) the plugin sets it
+/// every frame from the active cameras' frusta and the surface's bounds; any other surface
+/// counts as seen unless a game says otherwise.
 #[derive(Component, Debug, Clone, Copy, PartialEq, Eq, Reflect, Deref)]
 #[reflect(Component, Debug, Default)]
 pub struct SurfaceInView(pub bool);

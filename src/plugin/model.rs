@@ -20,8 +20,9 @@ use bevy::prelude::*;
 
 use super::components::{
     DenseSurface, SceneTimeline, SimulationPoints, SurfaceAnchors, SurfaceMasses, SurfaceMaterial,
-    SurfaceNetwork, SurfacePressure, SurfaceSprings, SurfaceStatus,
+    SurfaceNetwork, SurfacePressure, SurfaceSleep, SurfaceSprings, SurfaceStatus,
 };
+use super::simulate::follow;
 use crate::core::cloud::io::PlyEncoding;
 use crate::core::pipeline::{BakeParts, bake};
 
@@ -86,6 +87,7 @@ type ModelParts = (
     &'static SurfaceStatus,
     &'static mut SurfaceAnchors,
     Option<&'static mut SceneTimeline>,
+    &'static mut SurfaceSleep,
 );
 
 /// Carries out the tick's modelling requests, in the order they were sent.
@@ -120,6 +122,7 @@ fn carry_out(request: &ModelMessage, surfaces: &mut Query<ModelParts>) -> Result
         status,
         mut anchors,
         timeline,
+        mut sleep,
     )) = surfaces.get_mut(*surface)
     else {
         return Err(format!("{surface} is not a prepared surface"));
@@ -141,9 +144,13 @@ fn carry_out(request: &ModelMessage, surfaces: &mut Query<ModelParts>) -> Result
             network.0 = baked.into();
             Ok(())
         }
-        ModelMessage::Export { path, .. } => dense
-            .export(path, PlyEncoding::BinaryLittleEndian)
-            .map_err(|e| e.to_string()),
+        ModelMessage::Export { path, .. } => {
+            // The current shape, even where the transfer waited (out of view, per frame).
+            follow(&mut dense, &points).map_err(|e| e.to_string())?;
+            dense
+                .export(path, PlyEncoding::BinaryLittleEndian)
+                .map_err(|e| e.to_string())
+        }
         ModelMessage::Reset { .. } => {
             springs
                 .set_rest_lengths(|i| network.rest_length(i))
@@ -155,6 +162,11 @@ fn carry_out(request: &ModelMessage, surfaces: &mut Query<ModelParts>) -> Result
             if let Some(mut timeline) = timeline {
                 timeline.restart(&mut anchors);
             }
+            // The rest shape need not be at rest under gravity or pins: awake, it settles.
+            *sleep = SurfaceSleep {
+                acted: true,
+                ..SurfaceSleep::default()
+            };
             Ok(())
         }
     }

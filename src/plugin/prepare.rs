@@ -62,11 +62,13 @@ impl PreparationPool {
     }
 }
 
-/// Prepares a surface again with these settings. On a ready surface the old simulation
-/// keeps running until the new one is ready (with [`PreparationProgress`] present
-/// meanwhile); on any other it is a fresh start. A scene keeps its cloud, pins and pulls
-/// and takes these settings; its timeline starts again. The plugin removes the component
-/// when it starts the work.
+/// Prepares a surface again with these settings, from its source: a baked or sculpted
+/// shape is not kept. On a ready surface the old simulation keeps running until the new
+/// one is ready (with [`PreparationProgress`] present meanwhile), and
+/// [`DeformableSurface::config`] takes the settings then; a surface being prepared takes
+/// the request once it is ready; a pending, loading or failed one starts afresh with these
+/// settings. A scene keeps its cloud, pins and pulls and takes these settings; its timeline
+/// starts again. The plugin removes the component when it starts the work (or could not).
 #[derive(Component, Debug, Clone, PartialEq)]
 pub struct PrepareAgain(pub SurfaceConfig);
 
@@ -120,8 +122,9 @@ impl Shared {
 pub(crate) struct PreparationTask {
     task: Task<Result<Prepared, String>>,
     shared: Arc<Shared>,
-    /// Whether the surface's old simulation runs on meanwhile ([`PrepareAgain`]).
-    background: bool,
+    /// With [`PrepareAgain`] on a ready surface: the settings it takes when the new
+    /// simulation replaces the old one, which runs on meanwhile.
+    background: Option<SurfaceConfig>,
 }
 
 impl Drop for PreparationTask {
@@ -198,6 +201,7 @@ pub(crate) fn start_preparation(
     )>,
 ) {
     for (entity, mut surface, mut status, again) in &mut surfaces {
+        let again = again.map(|a| a.0);
         let background = again.is_some() && status.is_ready();
         let fresh = match *status {
             SurfaceStatus::Pending | SurfaceStatus::Loading => true,
@@ -222,8 +226,7 @@ pub(crate) fn start_preparation(
                 continue;
             }
             Inputs::Failed(message) => {
-                error!("point-springs surface {entity}: {message}");
-                *status = SurfaceStatus::Failed(message);
+                refuse(&mut commands, entity, &mut status, background, message);
                 continue;
             }
         };
@@ -235,24 +238,27 @@ pub(crate) fn start_preparation(
                     pool
                 }
                 Err(e) => {
-                    *status = SurfaceStatus::Failed(format!("no thread pool: {e}"));
+                    let message = format!("no thread pool: {e}");
+                    refuse(&mut commands, entity, &mut status, background, message);
                     continue;
                 }
             },
         };
-        if let Some(PrepareAgain(config)) = again {
-            if let Some(scene) = &mut scene {
-                scene.set_surface_config(config);
+        let mut config = again.unwrap_or(surface.config);
+        if let Some(scene) = &mut scene {
+            if let Some(again) = &again {
+                scene.set_surface_config(again);
             }
-            surface.config = *config;
+            config = scene.surface_config();
+        }
+        if again.is_some() {
             commands
                 .entity(entity)
                 .remove::<(PrepareAgain, PrepareAgainFailed)>();
         }
-        if let Some(scene) = &scene {
-            surface.config = scene.surface_config();
+        if !background {
+            surface.config = config;
         }
-        let config = surface.config;
         let shared = Arc::new(Shared::default());
         let task_shared = shared.clone();
         let task = AsyncComputeTaskPool::get().spawn(async move {
@@ -263,13 +269,33 @@ pub(crate) fn start_preparation(
             PreparationTask {
                 task,
                 shared,
-                background,
+                background: background.then_some(config),
             },
             PreparationProgress::at(Stage::Normals, 0.0),
         ));
         if !background {
             *status = SurfaceStatus::Preparing;
         }
+    }
+}
+
+/// A preparation that could not start: a fresh one fails the surface; one in the background
+/// leaves the running surface as it is and says why in [`PrepareAgainFailed`]. The request
+/// is dropped either way (it would fail the same way again).
+fn refuse(
+    commands: &mut Commands,
+    entity: Entity,
+    status: &mut SurfaceStatus,
+    background: bool,
+    message: String,
+) {
+    error!("point-springs surface {entity}: {message}");
+    let mut entity = commands.entity(entity);
+    entity.remove::<PrepareAgain>();
+    if background {
+        entity.insert(PrepareAgainFailed(message));
+    } else {
+        *status = SurfaceStatus::Failed(message);
     }
 }
 
@@ -309,10 +335,11 @@ pub(crate) fn finish_preparation(
         &mut PreparationTask,
         &mut PreparationProgress,
         &mut SurfaceStatus,
+        &mut DeformableSurface,
     )>,
 ) {
-    for (entity, mut task, mut progress, mut status) in &mut surfaces {
-        let expected = if task.background {
+    for (entity, mut task, mut progress, mut status, mut surface) in &mut surfaces {
+        let expected = if task.background.is_some() {
             SurfaceStatus::Ready
         } else {
             SurfaceStatus::Preparing
@@ -332,14 +359,15 @@ pub(crate) fn finish_preparation(
         entity_commands.remove::<(PreparationTask, PreparationProgress)>();
         match result {
             Ok(prepared) => {
-                if task.background {
+                if let Some(config) = task.background {
+                    surface.config = config;
                     // The old anchors go with the old simulation: so do grabs holding them.
                     grabs.forget_surface(entity);
                 }
                 insert_simulation(&mut entity_commands, prepared);
                 *status = SurfaceStatus::Ready;
             }
-            Err(message) if task.background => {
+            Err(message) if task.background.is_some() => {
                 error!("point-springs surface {entity}: preparing again: {message}");
                 entity_commands.insert(PrepareAgainFailed(message));
             }

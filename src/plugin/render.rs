@@ -14,6 +14,7 @@
 //! springs in two colours.
 
 use std::collections::HashMap;
+use std::sync::Arc;
 use std::time::Instant;
 
 use bevy::asset::{AssetPath, RenderAssetUsages, embedded_asset, embedded_path};
@@ -214,6 +215,14 @@ pub struct SurfelSlot {
     radii: Vec<f32>,
     /// The dense surface's revision last uploaded.
     uploaded: u64,
+    /// The network the radii were measured for (its address): a bake or a new preparation
+    /// replaces it, and with it the dense surface's rest shape.
+    network: usize,
+}
+
+/// The address of a surface's network, which a bake or a preparation replaces.
+fn network_key(network: &SurfaceNetwork) -> usize {
+    Arc::as_ptr(&network.0) as usize
 }
 
 /// A static index mesh of `slot` hexagons.
@@ -260,6 +269,7 @@ fn attach_surfels(
     mut surfaces: Query<(
         Entity,
         &DenseSurface,
+        &SurfaceNetwork,
         &SurfelRender,
         Option<&mut SurfelSlot>,
     )>,
@@ -269,10 +279,14 @@ fn attach_surfels(
     for entity in removed.read() {
         batches.forget(entity);
     }
-    for (entity, dense, render, slot) in &mut surfaces {
+    for (entity, dense, network, render, slot) in &mut surfaces {
         let key = look(render.color);
+        let network = network_key(network);
         let fits = slot.as_ref().is_some_and(|s| {
-            s.look == key && s.radii.len() == dense.len() && dense.len() <= s.slot
+            s.look == key
+                && s.network == network
+                && s.radii.len() == dense.len()
+                && dense.len() <= s.slot
         });
         if fits {
             continue;
@@ -281,10 +295,12 @@ fn attach_surfels(
             .as_ref()
             .is_some_and(|s| s.look == key && dense.len() <= s.slot)
         {
-            // Grown within its slot (resampling): new points need radii only.
+            // Grown within its slot (resampling), or given a new rest shape (a bake, a new
+            // preparation): new radii only.
             if let Some(mut slot) = slot {
                 slot.radii = surfel_radii(dense.transfer().rest_positions(), render.radius_scale);
                 slot.uploaded = 0;
+                slot.network = network;
             }
             continue;
         }
@@ -308,6 +324,7 @@ fn attach_surfels(
                 slot: size,
                 radii,
                 uploaded: 0,
+                network,
             },
             Mesh3d(assets.meshes.add(index_mesh(size))),
             MeshMaterial3d(batch.material.clone()),

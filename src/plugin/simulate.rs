@@ -219,7 +219,7 @@ type TransferParts = (
     &'static SurfaceStepper,
     &'static mut DenseSurface,
     &'static mut SurfaceStatus,
-    (&'static SurfaceSettings, &'static SurfaceInView),
+    (&'static SurfaceSettings, Ref<'static, SurfaceInView>),
     (&'static mut SurfaceWork, &'static mut SurfaceTimings),
 );
 
@@ -271,12 +271,14 @@ fn follow_counted(
     }
 }
 
-/// The transfer of surfaces that follow once per rendered frame (and are in view).
+/// The transfer of surfaces that follow once per rendered frame (and are in view), and of
+/// surfaces just seen again (so that they are not drawn as they were until the next tick).
 pub(crate) fn transfer_frame(mut surfaces: Query<TransferParts>) {
     for (entity, points, _, mut dense, mut status, (settings, in_view), (mut work, mut timings)) in
         &mut surfaces
     {
-        if status.is_ready() && in_view.0 && settings.transfer == TransferTiming::PerFrame {
+        let due = settings.transfer == TransferTiming::PerFrame || in_view.is_changed();
+        if status.is_ready() && in_view.0 && due {
             let start = Instant::now();
             follow_counted(entity, &mut dense, points, &mut status, &mut work);
             timings.transfer_ms = ms_since(start);

@@ -17,7 +17,7 @@ use super::touch::{Touched, touch};
 use super::{ContactDiagnostics, SurfaceContact, SurfaceContacts};
 use crate::core::network::SpringNetwork;
 use crate::plugin::components::{
-    SimulationPoints, SurfaceForces, SurfaceMasses, SurfaceNetwork, SurfaceSettings,
+    SimulationPoints, StepOnce, SurfaceForces, SurfaceMasses, SurfaceNetwork, SurfaceSettings,
     SurfaceSprings, SurfaceStatus, SurfaceStepper,
 };
 
@@ -35,6 +35,7 @@ pub struct ContactSurface {
     place: &'static GlobalTransform,
     status: &'static SurfaceStatus,
     settings: &'static SurfaceSettings,
+    step_once: Has<StepOnce>,
     contact: Option<Ref<'static, SurfaceContact>>,
     groups: Option<&'static CollisionGroups>,
     report: Option<&'static mut SurfaceContacts>,
@@ -95,11 +96,12 @@ fn contact_surface(
         place,
         status,
         settings,
+        step_once,
         contact,
         groups,
         report,
     } = surface;
-    if !status.is_ready() || settings.paused {
+    if !status.is_ready() || (settings.paused && !step_once) {
         return 0;
     }
     // Settings out of range are said once, when they are set.

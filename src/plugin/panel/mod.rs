@@ -28,6 +28,7 @@ use super::components::{
     ModelQuery, SimulationPoints, SurfaceStatus, SurfaceStepper, SurfaceTimings,
 };
 use super::model::ModelOutcome;
+use super::render::SpringGizmos;
 
 /// Seconds of history the panel's plots show.
 pub const HISTORY_SECONDS: f64 = 10.0;
@@ -42,6 +43,7 @@ impl Plugin for PointSpringsPanelPlugin {
             app.add_plugins(EguiPlugin::default());
         }
         app.init_resource::<SurfacePanel>()
+            .init_resource::<SpringGizmos>()
             .init_resource::<PanelHistory>()
             .add_systems(
                 PostUpdate,
@@ -97,18 +99,22 @@ struct PanelHistory {
     samples: VecDeque<Sample>,
 }
 
-/// The first ready surface is selected when none (or a despawned one) is.
+/// The first ready surface is selected when none (or a despawned one) is; a newly selected
+/// surface's simulation points are the level the panel offers to prepare again.
 fn select_default(
     mut panel: ResMut<SurfacePanel>,
-    surfaces: Query<(Entity, &SurfaceStatus, &SimulationPoints)>,
+    surfaces: Query<(Entity, &SurfaceStatus, Option<&SimulationPoints>)>,
+    mut levelled: Local<Option<Entity>>,
 ) {
-    if panel.selected.is_some_and(|e| surfaces.contains(e)) {
-        return;
+    if !panel.selected.is_some_and(|e| surfaces.contains(e)) {
+        let first = surfaces.iter().find(|(_, status, _)| status.is_ready());
+        panel.selected = first.map(|(e, ..)| e);
     }
-    let first = surfaces.iter().find(|(_, status, _)| status.is_ready());
-    panel.selected = first.map(|(e, ..)| e);
-    if let Some((_, _, points)) = first {
+    if *levelled != panel.selected
+        && let Some(Ok((entity, _, Some(points)))) = panel.selected.map(|e| surfaces.get(e))
+    {
         panel.simulation_points = points.len();
+        *levelled = Some(entity);
     }
 }
 
@@ -133,8 +139,11 @@ fn record_history(
     else {
         return;
     };
-    let energy = stepper.energy(points, parts.model());
     let now = time.elapsed_secs_f64();
+    if history.samples.back().is_some_and(|s| s.time >= now) {
+        return; // time is paused: nothing new to plot
+    }
+    let energy = stepper.energy(points, parts.model());
     history.samples.push_back(Sample {
         time: now,
         kinetic: energy.kinetic,

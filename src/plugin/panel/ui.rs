@@ -9,6 +9,7 @@ use bevy_egui::{EguiContexts, egui};
 use egui_plot::{Legend, Line, Plot};
 
 use super::{HISTORY_SECONDS, PanelHistory, SurfacePanel};
+use crate::core::simplify::MIN_SIMULATION_POINTS;
 use crate::core::solver::{Integrator, SubstepPolicy};
 use crate::plugin::components::{
     DeformableSurface, DenseSurface, PreparationProgress, SimulationPoints, StepOnce,
@@ -304,22 +305,42 @@ fn material(ui: &mut egui::Ui, s: &mut PanelSurfaceItem) {
         0.01..=10_000.0,
         "bend stiffness",
     ));
-    ui.add(egui::Slider::new(&mut m.stretch_damping, 0.0..=20.0).text("stretch damping"));
-    ui.add(egui::Slider::new(&mut m.bend_damping, 0.0..=20.0).text("bend damping"));
+    ui.add(slider(
+        &mut m.stretch_damping,
+        0.0..=20.0,
+        "stretch damping",
+    ));
+    ui.add(slider(&mut m.bend_damping, 0.0..=20.0, "bend damping"));
     ui.add(log_slider(&mut m.yield_strain, 0.001..=1.0, "yield strain"));
-    ui.add(egui::Slider::new(&mut m.creep_rate, 0.0..=20.0).text("creep rate (0: elastic)"));
+    ui.add(slider(
+        &mut m.creep_rate,
+        0.0..=20.0,
+        "creep rate (0: elastic)",
+    ));
     if m != s.material.0 {
         s.material.0 = m;
     }
 }
 
-/// A slider over a logarithmic range.
-fn log_slider<'a>(
-    value: &'a mut f32,
-    range: std::ops::RangeInclusive<f32>,
+/// A slider that leaves a value set elsewhere outside its range as it is (the default
+/// would clamp it, which writes the component back and wakes the surface).
+fn slider<'a, N: egui::emath::Numeric>(
+    value: &'a mut N,
+    range: std::ops::RangeInclusive<N>,
     text: &str,
 ) -> egui::Slider<'a> {
-    egui::Slider::new(value, range).logarithmic(true).text(text)
+    egui::Slider::new(value, range)
+        .clamping(egui::SliderClamping::Edits)
+        .text(text)
+}
+
+/// [`slider`] over a logarithmic range.
+fn log_slider<'a, N: egui::emath::Numeric>(
+    value: &'a mut N,
+    range: std::ops::RangeInclusive<N>,
+    text: &str,
+) -> egui::Slider<'a> {
+    slider(value, range, text).logarithmic(true)
 }
 
 /// Integrator, sub-steps, gravity, drag and the fixed tick.
@@ -346,7 +367,7 @@ fn solver(
             }
         });
     if let SubstepPolicy::Auto { max_substeps } = &mut config.substeps {
-        ui.add(egui::Slider::new(max_substeps, 1..=256).text("max sub-steps"));
+        ui.add(slider(max_substeps, 1..=256, "max sub-steps"));
     }
     ui.horizontal(|ui| {
         ui.label("gravity");
@@ -354,7 +375,7 @@ fn solver(
             ui.add(egui::DragValue::new(&mut config.gravity[axis]).speed(0.1));
         }
     });
-    ui.add(egui::Slider::new(&mut config.drag, 0.0..=20.0).text("drag"));
+    ui.add(slider(&mut config.drag, 0.0..=20.0, "drag"));
     if config != *s.stepper.config() {
         match s.stepper.set_config(config) {
             // A changed solver wakes a sleeping surface (it may now fall).
@@ -363,10 +384,14 @@ fn solver(
         }
     }
     let mut hz = 1.0 / world.fixed.timestep().as_secs_f64();
-    let tick = egui::Slider::new(&mut hz, TICK_RANGE_HZ)
-        .logarithmic(true)
-        .text("fixed tick, Hz (all surfaces)");
-    if ui.add(tick).changed() {
+    if ui
+        .add(log_slider(
+            &mut hz,
+            TICK_RANGE_HZ,
+            "fixed tick, Hz (all surfaces)",
+        ))
+        .changed()
+    {
         world.fixed.set_timestep_hz(hz);
     }
 }
@@ -379,12 +404,12 @@ fn simplification(
     s: &mut PanelSurfaceItem,
     world: &mut PanelWorld,
 ) {
-    let dense = s.dense.len().max(2);
-    ui.add(
-        egui::Slider::new(&mut panel.simulation_points, 2..=dense)
-            .logarithmic(true)
-            .text("simulation points"),
-    );
+    let most = s.dense.len().max(MIN_SIMULATION_POINTS);
+    ui.add(log_slider(
+        &mut panel.simulation_points,
+        MIN_SIMULATION_POINTS..=most,
+        "simulation points",
+    ));
     if let Some(progress) = s.progress {
         ui.add(egui::ProgressBar::new(progress.fraction).text(format!(
             "preparing: {} {:.0}%",
@@ -393,7 +418,10 @@ fn simplification(
         )));
     } else if ui
         .button("prepare again")
-        .on_hover_text("in the background; the surface runs on until the new one is ready")
+        .on_hover_text(
+            "from the source cloud (a baked or sculpted shape is not kept), in the \
+             background: the surface runs on until the new one is ready",
+        )
         .clicked()
     {
         let mut config = s.surface.config;
