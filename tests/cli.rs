@@ -374,6 +374,17 @@ fn bench_transfer_reports_speed_and_error() {
     assert_eq!(v["sim_points"], 300);
     assert!(v["apply_ms"].as_f64().unwrap() > 0.0);
     assert!(v["speedup"].as_f64().unwrap() > 0.0);
+    // Throughput against a memory copy in the same run: at least the written positions and
+    // normals are counted, and the rate is those bytes over the frame's time.
+    let bytes = v["frame_bytes"].as_f64().unwrap();
+    assert!(bytes >= 3000.0 * 24.0, "{bytes} bytes");
+    let gb_s = v["transfer_gb_s"].as_f64().unwrap();
+    let from_time = bytes / (v["apply_ms"].as_f64().unwrap() * 1e-3) / 1e9;
+    assert!(
+        (gb_s - from_time).abs() <= 1e-9 * from_time,
+        "{gb_s} vs {from_time}"
+    );
+    assert!(v["memcpy_gb_s"].as_f64().unwrap() > 0.0);
     // Both methods follow the bulge; the precomputed fit is the closer one.
     let ours = v["errors"]["position_mean"].as_f64().unwrap();
     let literal = v["literal_errors"]["position_mean"].as_f64().unwrap();

@@ -127,6 +127,14 @@ struct TransferBenchReport {
     apply_ms: f64,
     /// The precomputed transfer of positions only, ms per frame.
     apply_positions_ms: f64,
+    /// Bytes a frame of positions and normals reads and writes: neighbour indices and
+    /// coefficients, the simulation points' positions, the dense positions and normals.
+    frame_bytes: usize,
+    /// Those bytes over the frame's time, GB/s (10⁹ bytes per second).
+    transfer_gb_s: f64,
+    /// A parallel memory copy of the same number of bytes (half read, half written), on
+    /// the same threads in the same rounds, GB/s: the machine's ceiling for the transfer.
+    memcpy_gb_s: f64,
     /// Its errors.
     errors: Errors,
     /// Its errors with PCA normals of the deformed positions instead.
@@ -172,6 +180,14 @@ impl fmt::Display for TransferBenchReport {
             self.fits_residual
         )?;
         error_line(f, "precomputed", Some(self.apply_ms), &self.errors)?;
+        writeln!(
+            f,
+            "  throughput   {:.1} GB/s ({:.1} MB read and written per frame), {:.0} % of a {:.1} GB/s memory copy",
+            self.transfer_gb_s,
+            self.frame_bytes as f64 / 1e6,
+            100.0 * self.transfer_gb_s / self.memcpy_gb_s,
+            self.memcpy_gb_s
+        )?;
         writeln!(f, "  positions only {:.3} ms", self.apply_positions_ms)?;
         error_line(f, "  +PCA normals", None, &self.errors_pca_normals)?;
         if let (Some(ms), Some(e), Some(x)) = (self.literal_ms, &self.literal_errors, self.speedup)
@@ -287,6 +303,30 @@ struct Times {
     apply_positions: f64,
     /// Literal (infinite when skipped).
     literal: f64,
+    /// A memory copy of the frame's bytes.
+    memcpy: f64,
+}
+
+/// Bytes moved per frame of positions and normals (see `TransferBenchReport::frame_bytes`).
+fn frame_bytes(t: &Transfer, sim: usize) -> usize {
+    let written = 2 * size_of::<Vec3>() * t.len();
+    // The simulation points' current positions, read as 16-byte vectors.
+    t.coefficient_bytes() + 16 * sim + written
+}
+
+/// Copies `src` into `dst` in parallel, a few pieces per thread (as the transfer splits).
+fn parallel_copy(src: &[u8], dst: &mut [u8]) {
+    use rayon::prelude::*;
+    let pieces = 4 * rayon::current_num_threads();
+    let chunk = src.len().div_ceil(pieces).max(4096);
+    dst.par_chunks_mut(chunk)
+        .zip(src.par_chunks(chunk))
+        .for_each(|(d, s)| d.copy_from_slice(s));
+}
+
+/// GB/s of `bytes` moved in `ms` milliseconds.
+fn gb_per_s(bytes: usize, ms: f64) -> f64 {
+    bytes as f64 / (ms * 1e-3) / 1e9
 }
 
 /// Times the methods and measures their errors; the report.
@@ -320,7 +360,13 @@ fn measure(args: &Args) -> Result<TransferBenchReport, Failure> {
         apply: f64::INFINITY,
         apply_positions: f64::INFINITY,
         literal: f64::INFINITY,
+        memcpy: f64::INFINITY,
     };
+    // The copy moves as many bytes as a frame: half of them read, half written.
+    let bytes = frame_bytes(&t, sim.len());
+    let copy_src = vec![1u8; bytes / 2];
+    let mut copy_dst = vec![0u8; bytes / 2];
+    let copy_calls = calls_for(&mut || parallel_copy(&copy_src, &mut copy_dst));
     let calls = calls_for(&mut || {
         let _ = t.apply(&disp, &mut positions, &mut deformed);
     });
@@ -330,6 +376,9 @@ fn measure(args: &Args) -> Result<TransferBenchReport, Failure> {
         }));
         times.apply_positions = times.apply_positions.min(per_call_ms(calls, &mut || {
             let _ = t.apply_positions(&disp, &mut positions);
+        }));
+        times.memcpy = times.memcpy.min(per_call_ms(copy_calls, &mut || {
+            parallel_copy(&copy_src, &mut copy_dst);
         }));
         if !args.no_literal {
             times.literal = times.literal.min(per_call_ms(1, &mut || {
@@ -363,6 +412,9 @@ fn measure(args: &Args) -> Result<TransferBenchReport, Failure> {
         fits_residual: fits.residual,
         apply_ms: times.apply,
         apply_positions_ms: times.apply_positions,
+        frame_bytes: bytes,
+        transfer_gb_s: gb_per_s(bytes, times.apply),
+        memcpy_gb_s: gb_per_s(2 * (bytes / 2), times.memcpy),
         errors: errors(rest, normals, &positions, &deformed),
         errors_pca_normals: errors(rest, normals, &positions, &pca),
         literal_ms: literal.as_ref().map(|l| l.0),
