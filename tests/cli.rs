@@ -394,6 +394,39 @@ fn bench_transfer_reports_speed_and_error() {
 }
 
 #[test]
+fn bench_table1_measures_the_papers_sizes_with_every_integrator() {
+    let scene = asset("scenes/sphere_poke.ron");
+    let v = run_json(&[
+        "bench",
+        "table1",
+        scene.to_str().unwrap(),
+        "--steps",
+        "3",
+        "--json",
+    ]);
+    let rows = v["rows"].as_array().expect("rows");
+    assert_eq!(rows.len(), 9, "three sizes, three integrators");
+    for (row, paper) in rows.iter().zip([85, 85, 85, 273, 273, 273, 338, 338, 338]) {
+        assert_eq!(row["paper_sim_points"], paper);
+        assert_eq!(row["sim_points"], paper, "the network has the paper's size");
+        assert_eq!(row["dense_points"], 3203);
+        assert_eq!(row["transfers"], 3, "the poke moves the surface every step");
+        let ms = row["ms_per_step"].as_f64().unwrap();
+        let parts = row["ms_simulate"].as_f64().unwrap() + row["ms_transfer"].as_f64().unwrap();
+        assert!(ms > 0.0 && (ms - parts).abs() <= 1e-9 * ms);
+        let paper_s = row["paper_s"].as_f64().unwrap();
+        assert!(
+            (row["speedup"].as_f64().unwrap() - paper_s * 1e3 / ms).abs()
+                < 1e-6 * paper_s * 1e3 / ms
+        );
+    }
+    let out = run(&["bench", "table1", scene.to_str().unwrap(), "--steps", "0"]);
+    assert_eq!(out.status.code(), Some(2));
+    let out = run(&["bench", "table1", "no/such/scene.ron"]);
+    assert_eq!(out.status.code(), Some(2));
+}
+
+#[test]
 fn bench_network_reports_each_level() {
     let hat = scratch("hat.ply");
     run_ok(&[

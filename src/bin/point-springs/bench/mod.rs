@@ -6,6 +6,7 @@ mod cloth;
 mod network;
 #[cfg(feature = "plugin")]
 mod plugin;
+mod table1;
 mod transfer;
 
 use clap::Subcommand;
@@ -42,6 +43,10 @@ enum Case {
     /// of its points, with the network's closedness, Euler characteristic, boundary loops,
     /// fold-overs, crossings and the time of each stage (a Markdown table, or JSON).
     Network(network::Args),
+    /// The paper's Table 1 measured here: the 3203-point sphere of Fig. 5 at 85, 273 and
+    /// 338 simulation points, poked, with each integrator; ms per step including the
+    /// transfer of positions and normals to every dense point, beside the paper's seconds.
+    Table1(table1::Args),
 }
 
 /// Runs `bench`.
@@ -52,5 +57,6 @@ pub fn run(args: Args) -> Result<(), Failure> {
         #[cfg(feature = "plugin")]
         Case::Plugin(args) => plugin::run(&args),
         Case::Network(args) => network::run(&args),
+        Case::Table1(args) => table1::run(&args),
     }
 }

@@ -1,0 +1,203 @@
+//! `point-springs bench table1`: the paper's Table 1 measured here. The 3203-point sphere
+//! of Fig. 5 (the `sphere_poke` scene) simplified to the table's 85, 273 and 338
+//! simulation points, poked as in the scene; the time per step includes the transfer to
+//! every dense point, positions and normals, as the paper's does. The paper's figures (a
+//! 2 GHz Pentium IV, 2007) are printed beside ours.
+
+use std::fmt;
+use std::path::PathBuf;
+use std::time::Instant;
+
+use bevy_point_springs::core::scene::Scene;
+use bevy_point_springs::core::solver::Integrator;
+use serde::Serialize;
+
+use crate::args::JsonFlag;
+use crate::failure::Failure;
+use crate::report::Report;
+
+/// The paper's Table 1: simulation points and seconds per step on its 2 GHz Pentium IV.
+pub const PAPER_TABLE1: [(usize, f64); 3] = [(85, 0.13), (273, 0.25), (338, 0.42)];
+
+/// The scene `bench table1` runs unless told otherwise (relative to the repository root).
+const DEFAULT_SCENE: &str = "assets/scenes/sphere_poke.ron";
+
+/// Most steps `bench table1` takes per row.
+const MAX_STEPS: usize = 100_000;
+
+/// Arguments of `bench table1`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// The scene (by default the paper's sphere poke, `assets/scenes/sphere_poke.ron`).
+    #[arg(default_value = DEFAULT_SCENE)]
+    scene: PathBuf,
+    /// Steps timed per row: the first ones of the scene, while the finger presses in (the
+    /// surface moves every step, so every step transfers).
+    #[arg(long, default_value_t = 150)]
+    steps: usize,
+    #[command(flatten)]
+    json: JsonFlag,
+}
+
+/// One row: a size of the table with one integrator.
+#[derive(Debug, Serialize)]
+struct Row {
+    /// Simulation points asked for (the paper's).
+    paper_sim_points: usize,
+    /// Simulation points the network has.
+    sim_points: usize,
+    /// Dense points.
+    dense_points: usize,
+    /// Springs.
+    springs: usize,
+    /// The integrator.
+    integrator: String,
+    /// Sub-steps per step (the largest over the run).
+    substeps: u32,
+    /// Milliseconds per step: simulation and transfer.
+    ms_per_step: f64,
+    /// Of which the simulation (forces, step, the scene's pull).
+    ms_simulate: f64,
+    /// Of which the transfer of positions and normals to every dense point.
+    ms_transfer: f64,
+    /// Steps whose points moved, so that the transfer ran (all of them, normally).
+    transfers: usize,
+    /// The paper's seconds per step for this size.
+    paper_s: f64,
+    /// The paper's time over ours.
+    speedup: f64,
+}
+
+/// What `bench table1` reports.
+#[derive(Debug, Serialize)]
+struct Table1Report {
+    /// "table1".
+    benchmark: &'static str,
+    /// The scene run.
+    scene: String,
+    /// Steps timed per row.
+    steps: usize,
+    /// Step length, s.
+    dt: f32,
+    /// One row per size and integrator.
+    rows: Vec<Row>,
+}
+
+impl fmt::Display for Table1Report {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        writeln!(
+            f,
+            "Table 1 — {}, {} steps of {:.4} s per row; ours: this machine, one run; paper: a 2 GHz Pentium IV (2007)",
+            self.scene, self.steps, self.dt
+        )?;
+        writeln!(f)?;
+        writeln!(
+            f,
+            "| simulation points | dense | integrator | sub-steps | ms per step | simulate | transfer | paper, s per step | paper / ours |"
+        )?;
+        writeln!(f, "|---|---|---|---|---|---|---|---|---|")?;
+        for r in &self.rows {
+            writeln!(
+                f,
+                "| {} | {} | {} | {} | {:.3} | {:.3} | {:.3} | {} | {:.0}× |",
+                r.sim_points,
+                r.dense_points,
+                r.integrator,
+                r.substeps,
+                r.ms_per_step,
+                r.ms_simulate,
+                r.ms_transfer,
+                r.paper_s,
+                r.speedup
+            )?;
+        }
+        Ok(())
+    }
+}
+
+impl Report for Table1Report {}
+
+/// Runs `bench table1`.
+pub fn run(args: &Args) -> Result<(), Failure> {
+    if !(1..=MAX_STEPS).contains(&args.steps) {
+        return Err(Failure::bad_input(format!(
+            "--steps must be between 1 and {MAX_STEPS}"
+        )));
+    }
+    let (scene, base) = Scene::load(&args.scene).map_err(|e| {
+        Failure::bad_input(format!(
+            "{e} (give the scene, or run from the repository root)"
+        ))
+    })?;
+    let mut rows = Vec::new();
+    for (paper_sim_points, paper_s) in PAPER_TABLE1 {
+        for integrator in [
+            Integrator::ExplicitEuler,
+            Integrator::SymplecticEuler,
+            Integrator::ImplicitEuler,
+        ] {
+            let mut scene = scene.clone();
+            scene.simplify.target = Some(paper_sim_points);
+            scene.simplify.max_diameter = None;
+            scene.solver.integrator = integrator;
+            scene.steps = scene.steps.max(args.steps);
+            rows.push(measure(
+                &scene,
+                &base,
+                args.steps,
+                paper_sim_points,
+                paper_s,
+            )?);
+        }
+    }
+    let report = Table1Report {
+        benchmark: "table1",
+        scene: args.scene.display().to_string(),
+        steps: args.steps,
+        dt: scene.dt,
+        rows,
+    };
+    args.json.emit(&report)
+}
+
+/// One row: the scene prepared at one size, `steps` steps timed.
+fn measure(
+    scene: &Scene,
+    base: &std::path::Path,
+    steps: usize,
+    paper_sim_points: usize,
+    paper_s: f64,
+) -> Result<Row, Failure> {
+    let mut run = scene.prepare(base).map_err(Failure::bad_input)?;
+    let (mut simulate, mut transfer) = (0.0f64, 0.0f64);
+    let (mut substeps, mut transfers) = (0, 0);
+    for _ in 0..steps {
+        let start = Instant::now();
+        let report = run.step().map_err(Failure::other)?;
+        simulate += start.elapsed().as_secs_f64();
+        let start = Instant::now();
+        let s = &mut run.surface;
+        if s.dense.follow(&s.solver.points).map_err(Failure::other)? {
+            transfers += 1;
+        }
+        transfer += start.elapsed().as_secs_f64();
+        substeps = substeps.max(report.substeps);
+    }
+    let per_step = |seconds: f64| seconds * 1e3 / steps as f64;
+    let ms_per_step = per_step(simulate + transfer);
+    let surface = &run.surface;
+    Ok(Row {
+        paper_sim_points,
+        sim_points: surface.solver.points.len(),
+        dense_points: surface.dense.len(),
+        springs: surface.solver.springs.len(),
+        integrator: format!("{:?}", scene.solver.integrator),
+        substeps,
+        ms_per_step,
+        ms_simulate: per_step(simulate),
+        ms_transfer: per_step(transfer),
+        transfers,
+        paper_s,
+        speedup: paper_s * 1e3 / ms_per_step,
+    })
+}
