@@ -381,3 +381,54 @@ fn preparing_again_keeps_the_old_surface_running_until_the_new_one_is_ready() {
     app.update();
     assert_eq!(steps(&app), steps_then + 1);
 }
+
+/// The live panel, headless: bevy_egui runs its pass on a context of its own (no window, no
+/// renderer), and the panel draws the selected surface every frame.
+#[cfg(feature = "egui")]
+#[test]
+fn an_open_panel_draws_and_leaves_a_sleeping_surface_asleep() {
+    use bevy_egui::{EguiPlugin, EguiRenderOutput, PrimaryEguiContext};
+
+    let mut app = create_app_with(&assets_dir(), TICK, |app| {
+        // What the renderer's plugins would otherwise bring: the asset stores egui loads
+        // its shader and font texture into.
+        app.init_asset::<bevy::shader::Shader>()
+            .init_asset::<Image>()
+            .add_plugins((
+                bevy::input::InputPlugin,
+                // Window messages, no window.
+                bevy::window::WindowPlugin {
+                    primary_window: None,
+                    exit_condition: bevy::window::ExitCondition::DontExit,
+                    ..default()
+                },
+                EguiPlugin::default(),
+                PointSpringsPanelPlugin,
+            ));
+    });
+    let context = app.world_mut().spawn(PrimaryEguiContext).id();
+    let sphere = app.world_mut().spawn(floating(1500, 150)).id();
+    settle(&mut app, &[sphere]);
+    let sleep_ticks = (DEFAULT_SLEEP_AFTER / TICK.as_secs_f32()).ceil() as usize;
+    for _ in 0..sleep_ticks + 2 {
+        app.update();
+    }
+    let asleep = |app: &App| app.world().get::<SurfaceSleep>(sphere).unwrap().asleep;
+    assert!(asleep(&app));
+    let work = *app.world().get::<SurfaceWork>(sphere).unwrap();
+    for _ in 0..60 {
+        app.update();
+    }
+    assert_eq!(
+        app.world().resource::<SurfacePanel>().selected,
+        Some(sphere)
+    );
+    let drawn = &app
+        .world()
+        .get::<EguiRenderOutput>(context)
+        .unwrap()
+        .paint_jobs;
+    assert!(!drawn.is_empty(), "the panel drew nothing");
+    assert!(asleep(&app), "the open panel woke the surface");
+    assert_eq!(*app.world().get::<SurfaceWork>(sphere).unwrap(), work);
+}
