@@ -14,7 +14,8 @@
 //!
 //! Add [`PointSpringsPanelPlugin`] after `DefaultPlugins` and [`PointSpringsPlugin`](super::PointSpringsPlugin)
 //! (it adds bevy_egui's `EguiPlugin` when the app has none). Click a surface's row in the
-//! panel to select it; the first ready surface is selected to begin with.
+//! panel to select it; the first ready surface is selected to begin with. In a window
+//! narrower than 960 points the panel starts folded (click its title to unfold it).
 
 mod ui;
 

@@ -26,6 +26,9 @@ const PLOT_HEIGHT: f32 = 110.0;
 /// Width and height of the window when it opens, points.
 const WINDOW_SIZE: [f32; 2] = [300.0, 640.0];
 
+/// Narrower than this (points), the window starts folded so that the scene shows.
+const MIN_UNFOLDED_WIDTH: f32 = 960.0;
+
 /// The fixed tick the panel offers, Hz.
 const TICK_RANGE_HZ: std::ops::RangeInclusive<f64> = 15.0..=480.0;
 
@@ -68,8 +71,10 @@ pub(super) fn panel(
 ) -> Result {
     let ctx = contexts.ctx_mut()?;
     let mut open = panel.open;
+    let roomy = ctx.content_rect().width() >= MIN_UNFOLDED_WIDTH;
     egui::Window::new("point springs")
         .open(&mut open)
+        .default_open(roomy)
         .default_size(WINDOW_SIZE)
         .default_pos([8.0, 8.0])
         .show(ctx, |ui| {
