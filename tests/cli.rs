@@ -427,6 +427,44 @@ fn bench_table1_measures_the_papers_sizes_with_every_integrator() {
 }
 
 #[test]
+fn bench_scale_reports_every_configuration_that_fits() {
+    let v = run_json(&[
+        "bench",
+        "scale",
+        "--dense",
+        "1500,3000",
+        "--sim",
+        "60,2000",
+        "--steps",
+        "2",
+        "--json",
+    ]);
+    let rows = v.as_array().expect("one row per configuration");
+    // 2000 simulation points do not fit in 1500 dense ones: three configurations.
+    let sizes: Vec<(u64, u64)> = rows
+        .iter()
+        .map(|r| {
+            let n = |key: &str| r[key].as_u64().unwrap();
+            (n("dense_points"), n("sim_points"))
+        })
+        .collect();
+    assert_eq!(sizes, [(1500, 60), (3000, 60), (3000, 2000)]);
+    for r in rows {
+        let ms = |key: &str| r[key].as_f64().unwrap();
+        let stages =
+            ms("normals_ms") + ms("simplify_ms") + ms("network_ms") + ms("transfer_setup_ms");
+        assert!(
+            stages > 0.0 && stages <= ms("prepare_ms") * 1.000_001,
+            "{r}"
+        );
+        assert!(ms("step_ms") > 0.0 && ms("transfer_ms") > 0.0 && ms("coefficient_mib") > 0.0);
+        assert!(r["springs"].as_u64().unwrap() > 0);
+    }
+    let out = run(&["bench", "scale", "--dense", "3", "--steps", "1"]);
+    assert_eq!(out.status.code(), Some(2));
+}
+
+#[test]
 fn bench_network_reports_each_level() {
     let hat = scratch("hat.ply");
     run_ok(&[

@@ -6,12 +6,15 @@ mod cloth;
 mod network;
 #[cfg(feature = "plugin")]
 mod plugin;
+mod poke;
+mod scale;
 mod table1;
 mod transfer;
 
 use clap::Subcommand;
 
 use crate::failure::Failure;
+pub use poke::{POKED_SPHERE_DT, poked_sphere};
 
 /// Arguments of `bench`.
 #[derive(Debug, clap::Args)]
@@ -47,6 +50,9 @@ enum Case {
     /// 338 simulation points, poked, with each integrator; ms per step including the
     /// transfer of positions and normals to every dense point, beside the paper's seconds.
     Table1(table1::Args),
+    /// How preparation (by stage), a step, the transfer and memory grow with the dense and
+    /// simulation point counts (the generated sphere of Fig. 5, pressed for a few steps).
+    Scale(scale::Args),
 }
 
 /// Runs `bench`.
@@ -58,5 +64,6 @@ pub fn run(args: Args) -> Result<(), Failure> {
         Case::Plugin(args) => plugin::run(&args),
         Case::Network(args) => network::run(&args),
         Case::Table1(args) => table1::run(&args),
+        Case::Scale(args) => scale::run(&args),
     }
 }

@@ -19,19 +19,17 @@ use bevy::prelude::*;
 use bevy::time::TimeUpdateStrategy;
 use bevy_point_springs::core::PointCloud;
 use bevy_point_springs::core::cloud::io::read_cloud;
-use bevy_point_springs::core::cloud::shapes::fibonacci_sphere;
 use bevy_point_springs::core::cloud::surfels::{
     DEFAULT_SURFEL_SCALE, SURFEL_BYTES, pack_surfels, surfel_radii,
 };
 use bevy_point_springs::core::pipeline::{DenseCloud, PreparedSurface};
-use bevy_point_springs::core::scene::{Pull, Region, Scene, Timeline};
-use bevy_point_springs::core::simplify::SimplifyConfig;
-use bevy_point_springs::core::solver::{Integrator, SolverConfig, SpringMaterial};
+use bevy_point_springs::core::scene::{Scene, Timeline};
 use bevy_point_springs::prelude::{
     DeformableSurface, DenseSurface, PointSpringsPlugin, PointSpringsSystems, SurfaceStatus,
 };
 use serde::Serialize;
 
+use super::poked_sphere;
 use crate::args::JsonFlag;
 use crate::failure::Failure;
 use crate::report::Report;
@@ -63,9 +61,6 @@ pub struct Args {
 
 /// Largest dense cloud the generated scene takes.
 const MAX_DENSE: usize = 5_000_000;
-
-/// The step of the generated scene, s.
-const GENERATED_DT: f32 = 1.0 / 60.0;
 
 /// Upper bound on waiting for the ECS preparation (a hang guard).
 const PREPARE_TIMEOUT: Duration = Duration::from_secs(600);
@@ -146,49 +141,6 @@ impl fmt::Display for PluginReport {
 }
 
 impl Report for PluginReport {}
-
-/// The sphere of the paper's Fig. 5 at any size, held in its cup and pressed from above for
-/// the whole run (the points never come to rest, so no transfer is skipped).
-fn generated_scene(dense: usize, sim: usize, steps: usize) -> (Scene, PointCloud) {
-    let scene = Scene {
-        cloud: PathBuf::from(format!("<generated sphere of {dense} points>")),
-        normals: Default::default(),
-        simplify: SimplifyConfig::target(sim),
-        material: SpringMaterial {
-            stretch_stiffness: 60.0,
-            bend_stiffness: 60.0,
-            stretch_damping: 0.6,
-            bend_damping: 0.3,
-            ..SpringMaterial::default()
-        },
-        solver: SolverConfig {
-            integrator: Integrator::ImplicitEuler,
-            gravity: Vec3::ZERO,
-            drag: 4.0,
-            ..SolverConfig::default()
-        },
-        transfer: Default::default(),
-        resample: None,
-        pressure: Some(1000.0),
-        dt: GENERATED_DT,
-        steps,
-        pins: vec![Region::Box {
-            min: Vec3::splat(-2.0),
-            max: Vec3::new(2.0, -0.6, 2.0),
-        }],
-        pulls: vec![Pull {
-            at: Vec3::Y,
-            radius: Some(0.3),
-            to: Vec3::Y,
-            to_end: Some(Vec3::Y * 0.55),
-            stiffness: 300.0,
-            damping: 1.0,
-            start: 0,
-            end: None,
-        }],
-    };
-    (scene, fibonacci_sphere(dense, 1.0))
-}
 
 /// Marker times of the current tick, and the sums over timed ticks.
 #[derive(Resource, Default)]
@@ -294,7 +246,7 @@ fn scene(args: &Args, steps: usize) -> Result<(Scene, PointCloud, String), Failu
             (scene, cloud, path.display().to_string())
         }
         None => {
-            let (scene, cloud) = generated_scene(args.dense, args.sim, steps);
+            let (scene, cloud) = poked_sphere(args.dense, args.sim, steps);
             let name = scene.cloud.display().to_string();
             (scene, cloud, name)
         }

@@ -1,0 +1,195 @@
+//! `point-springs bench scale`: how preparation, a step, the transfer and memory grow with
+//! the dense and the simulation point counts. Each configuration is the generated sphere of
+//! the paper's Fig. 5 ([`poked_sphere`]) at that size, prepared from scratch, then pressed
+//! for a few steps (implicit Euler at 60 Hz, gas inside), each step followed by the transfer
+//! of positions and normals to every dense point.
+
+use std::fmt;
+use std::ops::ControlFlow;
+use std::time::Instant;
+
+use bevy_point_springs::core::pipeline::{Progress, Stage, prepare_surface};
+use bevy_point_springs::core::scene::Timeline;
+use serde::Serialize;
+
+use super::{POKED_SPHERE_DT, poked_sphere};
+use crate::failure::Failure;
+use crate::report::print_json;
+
+/// Most dense points `bench scale` takes.
+const MAX_DENSE: usize = 5_000_000;
+
+/// Most steps timed per configuration.
+const MAX_STEPS: usize = 10_000;
+
+/// Arguments of `bench scale`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Dense point counts.
+    #[arg(long, value_delimiter = ',', default_values_t = [10_000, 100_000, 1_000_000])]
+    dense: Vec<usize>,
+    /// Simulation point counts (each with every dense count it does not exceed).
+    #[arg(long, value_delimiter = ',', default_values_t = [100, 1_000, 10_000])]
+    sim: Vec<usize>,
+    /// Steps timed per configuration.
+    #[arg(long, default_value_t = 20)]
+    steps: usize,
+    /// Print JSON instead of a Markdown table.
+    #[arg(long)]
+    json: bool,
+}
+
+/// One configuration: a line of the table or an object of the JSON array.
+#[derive(Debug, Serialize)]
+struct Row {
+    /// Dense points.
+    dense_points: usize,
+    /// Simulation points.
+    sim_points: usize,
+    /// Springs.
+    springs: usize,
+    /// The whole preparation, ms.
+    prepare_ms: f64,
+    /// Of which normals (given with the sphere: checked and normalised), ms.
+    normals_ms: f64,
+    /// Of which §3, ms.
+    simplify_ms: f64,
+    /// Of which §4, ms.
+    network_ms: f64,
+    /// Of which the solver and the §5 coefficients, ms.
+    transfer_setup_ms: f64,
+    /// A step (the scene's press, then the solver), ms.
+    step_ms: f64,
+    /// The transfer of positions and normals to every dense point, ms per step.
+    transfer_ms: f64,
+    /// The transfer's coefficients, MiB.
+    coefficient_mib: f64,
+    /// The process's resident memory with this surface prepared and stepped, MiB (Linux:
+    /// `VmRSS`; it includes what the allocator keeps from earlier configurations).
+    resident_mib: Option<f64>,
+}
+
+impl fmt::Display for Row {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "| {} | {} | {} | {:.0} ({:.0} / {:.0} / {:.0} / {:.0}) | {:.3} | {:.3} | {:.1} | ",
+            self.dense_points,
+            self.sim_points,
+            self.springs,
+            self.prepare_ms,
+            self.normals_ms,
+            self.simplify_ms,
+            self.network_ms,
+            self.transfer_setup_ms,
+            self.step_ms,
+            self.transfer_ms,
+            self.coefficient_mib
+        )?;
+        match self.resident_mib {
+            Some(mib) => write!(f, "{mib:.0} |"),
+            None => write!(f, "— |"),
+        }
+    }
+}
+
+/// Runs `bench scale`.
+pub fn run(args: &Args) -> Result<(), Failure> {
+    if args.dense.iter().any(|&n| !(4..=MAX_DENSE).contains(&n)) {
+        return Err(Failure::bad_input(format!(
+            "--dense counts must be between 4 and {MAX_DENSE}"
+        )));
+    }
+    if args.sim.iter().any(|&m| m < 4) {
+        return Err(Failure::bad_input("--sim counts must be at least 4"));
+    }
+    if !(1..=MAX_STEPS).contains(&args.steps) {
+        return Err(Failure::bad_input(format!(
+            "--steps must be between 1 and {MAX_STEPS}"
+        )));
+    }
+    let mut rows = Vec::new();
+    for &dense in &args.dense {
+        for &sim in args.sim.iter().filter(|&&m| m <= dense) {
+            eprintln!("bench scale: {dense} dense points, {sim} simulation points");
+            rows.push(measure(dense, sim, args.steps)?);
+        }
+    }
+    if args.json {
+        return print_json(&rows);
+    }
+    println!(
+        "| dense points | simulation points | springs | prepare, ms (normals / §3 / §4 / solver and §5) | step, ms | transfer, ms | coefficients, MiB | resident, MiB |"
+    );
+    println!("|---|---|---|---|---|---|---|---|");
+    for row in &rows {
+        println!("{row}");
+    }
+    Ok(())
+}
+
+/// Prepares and steps one configuration.
+fn measure(dense: usize, sim: usize, steps: usize) -> Result<Row, Failure> {
+    let (scene, cloud) = poked_sphere(dense, sim, steps);
+    // When each stage started, from the preparation's progress reports.
+    let mut started: Vec<(Stage, Instant)> = Vec::new();
+    let start = Instant::now();
+    let mut surface = prepare_surface(cloud, &scene.surface_config(), &mut |p: Progress| {
+        if started.last().is_none_or(|&(stage, _)| stage != p.stage) {
+            started.push((p.stage, Instant::now()));
+        }
+        ControlFlow::Continue(())
+    })
+    .map_err(Failure::bad_input)?;
+    let end = Instant::now();
+    let stage_ms = |stage: Stage| {
+        let Some(i) = started.iter().position(|&(s, _)| s == stage) else {
+            return 0.0;
+        };
+        let until = started.get(i + 1).map_or(end, |&(_, t)| t);
+        (until - started[i].1).as_secs_f64() * 1e3
+    };
+    let mut timeline = Timeline::new(&scene, &surface.network.positions);
+    let (mut step_s, mut transfer_s) = (0.0, 0.0);
+    for _ in 0..steps {
+        let t = Instant::now();
+        timeline
+            .advance(&mut surface.solver.anchors, &surface.network.positions)
+            .map_err(Failure::other)?;
+        surface
+            .solver
+            .step(POKED_SPHERE_DT)
+            .map_err(Failure::other)?;
+        step_s += t.elapsed().as_secs_f64();
+        let t = Instant::now();
+        surface
+            .dense
+            .follow(&surface.solver.points)
+            .map_err(Failure::other)?;
+        transfer_s += t.elapsed().as_secs_f64();
+    }
+    let per_step = |s: f64| s * 1e3 / steps as f64;
+    Ok(Row {
+        dense_points: surface.dense.len(),
+        sim_points: surface.solver.points.len(),
+        springs: surface.solver.springs.len(),
+        prepare_ms: (end - start).as_secs_f64() * 1e3,
+        normals_ms: stage_ms(Stage::Normals),
+        simplify_ms: stage_ms(Stage::Simplify),
+        network_ms: stage_ms(Stage::Network),
+        transfer_setup_ms: stage_ms(Stage::Transfer),
+        step_ms: per_step(step_s),
+        transfer_ms: per_step(transfer_s),
+        coefficient_mib: surface.dense.transfer().coefficient_bytes() as f64
+            / f64::from(1u32 << 20),
+        resident_mib: resident_mib(),
+    })
+}
+
+/// The process's resident memory, MiB, where the system says (Linux).
+fn resident_mib() -> Option<f64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmRSS:"))?;
+    let kib: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib / 1024.0)
+}
