@@ -10,24 +10,17 @@ use bevy_point_springs::prelude::*;
 mod plugin_app;
 use plugin_app::*;
 
-#[test]
-fn a_plastic_material_keeps_what_a_grab_pulled_out() {
-    let mut app = create_app(&assets_dir(), TICK);
+/// A floating sphere (1500 dense, 150 simulation points) made plastic while it runs (yield
+/// 5 %, creep 5 per second: the material system hands the springs their yield), its top
+/// grabbed (key 1) and the grab moved `pull` up. Returns the sphere, its top point and
+/// where that point was at rest.
+fn plastic_sphere_pulled_up(app: &mut App, pull: f32) -> (Entity, usize, Vec3) {
     let sphere = app.world_mut().spawn(floating(1500, 150)).id();
-    settle(&mut app, &[sphere]);
-    // Made plastic while it runs: the material system hands the springs their yield.
+    settle(app, &[sphere]);
     let mut material = app.world_mut().get_mut::<SurfaceMaterial>(sphere).unwrap();
     material.yield_strain = 0.05;
     material.creep_rate = 5.0;
-    let (top, top_rest) = nearest_point(&app, sphere, Vec3::Y);
-    let y = |app: &App| {
-        app.world()
-            .get::<SimulationPoints>(sphere)
-            .unwrap()
-            .position(top)
-            .y
-    };
-    let pull = 0.4;
+    let (top, top_rest) = nearest_point(app, sphere, Vec3::Y);
     app.world_mut().write_message(GrabMessage::Start {
         key: 1,
         surface: sphere,
@@ -38,6 +31,21 @@ fn a_plastic_material_keeps_what_a_grab_pulled_out() {
         key: 1,
         target: top_rest + Vec3::Y * pull,
     });
+    (sphere, top, top_rest)
+}
+
+#[test]
+fn a_plastic_material_keeps_what_a_grab_pulled_out() {
+    let mut app = create_app(&assets_dir(), TICK);
+    let pull = 0.4;
+    let (sphere, top, top_rest) = plastic_sphere_pulled_up(&mut app, pull);
+    let y = |app: &App| {
+        app.world()
+            .get::<SimulationPoints>(sphere)
+            .unwrap()
+            .position(top)
+            .y
+    };
     for _ in 0..120 {
         app.update();
     }
@@ -201,23 +209,9 @@ fn outcomes(app: &mut App) -> Vec<ModelOutcome> {
 #[test]
 fn a_paused_surface_steps_once_on_request_and_resets_to_rest() {
     let mut app = create_app(&assets_dir(), TICK);
-    let sphere = app.world_mut().spawn(floating(1500, 150)).id();
-    settle(&mut app, &[sphere]);
     // Plastic and pulled, so that rest lengths flow for the reset to undo; held, so that
     // it keeps moving.
-    let mut material = app.world_mut().get_mut::<SurfaceMaterial>(sphere).unwrap();
-    material.yield_strain = 0.05;
-    material.creep_rate = 5.0;
-    let (_, top) = nearest_point(&app, sphere, Vec3::Y);
-    app.world_mut().write_message(GrabMessage::Start {
-        key: 1,
-        surface: sphere,
-        at: top,
-    });
-    app.world_mut().write_message(GrabMessage::Move {
-        key: 1,
-        target: top + Vec3::Y * 0.4,
-    });
+    let (sphere, ..) = plastic_sphere_pulled_up(&mut app, 0.4);
     for _ in 0..60 {
         app.update();
     }

@@ -190,29 +190,27 @@ fn plots(ui: &mut egui::Ui, history: &PanelHistory) {
             .collect()
     };
     ui.label(format!("energy, last {HISTORY_SECONDS} s"));
-    Plot::new("energy")
-        .height(PLOT_HEIGHT)
+    history_plot("energy")
         .legend(Legend::default())
-        .include_x(-HISTORY_SECONDS)
-        .include_y(0.0)
-        .allow_drag(false)
-        .allow_zoom(false)
-        .allow_scroll(false)
         .show(ui, |plot| {
             plot.line(Line::new("kinetic", series(|s| s.kinetic)));
             plot.line(Line::new("elastic", series(|s| s.elastic)));
         });
     ui.label(format!("ms per tick, last {HISTORY_SECONDS} s"));
-    Plot::new("ms per tick")
+    history_plot("ms per tick").show(ui, |plot| {
+        plot.line(Line::new("ms", series(|s| f64::from(s.tick_ms))));
+    });
+}
+
+/// A fixed plot of the last [`HISTORY_SECONDS`] (time to the left of 0, values from 0 up).
+fn history_plot(id: &str) -> Plot<'static> {
+    Plot::new(id)
         .height(PLOT_HEIGHT)
         .include_x(-HISTORY_SECONDS)
         .include_y(0.0)
         .allow_drag(false)
         .allow_zoom(false)
         .allow_scroll(false)
-        .show(ui, |plot| {
-            plot.line(Line::new("ms", series(|s| f64::from(s.tick_ms))));
-        });
 }
 
 /// Pause, step, reset, bake, export, and what to draw.
