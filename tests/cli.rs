@@ -465,6 +465,45 @@ fn bench_scale_reports_every_configuration_that_fits() {
 }
 
 #[test]
+fn bench_convergence_runs_every_problem_to_equilibrium_with_both_materials() {
+    let stem = scratch("convergence");
+    let v = run_json(&[
+        "bench",
+        "convergence",
+        "--fractions",
+        "0.2,0.05",
+        "--steps",
+        "30",
+        "--chart",
+        stem.to_str().unwrap(),
+        "--json",
+    ]);
+    let rows = v["rows"].as_array().expect("one row per run");
+    // Four problems, two materials, two levels (sorted, the finest last).
+    assert_eq!(rows.len(), 16);
+    for pair in rows.chunks(2) {
+        let f = |r: &serde_json::Value, key: &str| r[key].as_f64().unwrap();
+        assert_eq!(pair[0]["problem"], pair[1]["problem"]);
+        assert!(f(&pair[0], "sim_points") < f(&pair[1], "sim_points"));
+        assert_eq!(f(&pair[1], "relative"), 1.0, "{}", pair[1]);
+        for r in pair {
+            // The masses are the dense area's at every level.
+            assert!((f(r, "mass_ratio") - 1.0).abs() < 1e-3, "{r}");
+            assert!(f(r, "sag") > 0.0 && f(r, "sag") < 1.0, "{r}");
+        }
+    }
+    let units: Vec<&str> = rows.iter().map(|r| r["units"].as_str().unwrap()).collect();
+    assert_eq!(&units[..4], ["per_spring", "per_spring", "sheet", "sheet"]);
+    // The chart, twice; the SVG carries its text.
+    let svg = std::fs::read_to_string(stem.with_extension("svg")).unwrap();
+    assert!(svg.contains("simulation points") && svg.contains("Shell, sheet"));
+    let png = std::fs::metadata(stem.with_extension("png")).unwrap();
+    assert!(png.len() > 10_000, "{png:?}");
+    let out = run(&["bench", "convergence", "--fractions", "0", "--steps", "1"]);
+    assert_eq!(out.status.code(), Some(2));
+}
+
+#[test]
 fn bench_network_reports_each_level() {
     let hat = scratch("hat.ply");
     run_ok(&[

@@ -221,12 +221,21 @@ fn a_baked_shape_stays_put() {
         .map(|(a, b)| a.distance(*b))
         .fold(0.0f32, f32::max);
     assert!(off < 1e-5, "the dense surface moved by {off}");
-    // The masses are the pulled shape's: its area grew, and the mass with it.
+    // The masses are the pulled shape's: its area grew, and the mass with it (each point's
+    // share of the dense area grown with its region; density 1).
     let grown = pulled_area_ratio(&surface);
-    println!("baked: area {grown:.4} of the rest sphere's, dense surface within {off:e}");
-    assert!(grown > 1.002, "area ratio {grown}");
+    let fresh = pulled_sphere().network.report.total_mass;
     let mass: f32 = surface.network.masses.iter().sum();
-    assert!((mass / surface.network.report.area - 1.0).abs() < 1e-4);
+    println!(
+        "baked: area {grown:.4} of the rest sphere's, mass {:.4} of its, dense surface within {off:e}",
+        mass / fresh
+    );
+    assert!(grown > 1.002, "area ratio {grown}");
+    assert!((mass / surface.network.report.dense_area - 1.0).abs() < 1e-4);
+    assert!(
+        (mass / fresh / grown - 1.0).abs() < 0.01,
+        "{mass} / {fresh} against {grown}"
+    );
 }
 
 /// The baked network's area over the area of the unit sphere's network it came from.

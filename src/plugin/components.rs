@@ -27,7 +27,8 @@ use crate::core::network::SpringNetwork;
 use crate::core::pipeline::{DenseCloud, Stage, SurfaceConfig};
 use crate::core::scene::{Scene, Timeline};
 use crate::core::solver::{
-    Anchors, ExternalForces, Masses, Model, PointState, Pressure, SpringMaterial, Springs, Stepper,
+    Anchors, ExternalForces, Masses, MaterialUnits, Model, PointState, Pressure, SpringMaterial,
+    Springs, Stepper,
 };
 
 use super::assets::{CloudAsset, SceneAsset};
@@ -333,6 +334,9 @@ pub struct SurfaceMaterial(#[reflect(remote = SpringMaterialReflect)] pub Spring
 pub struct SpringMaterialReflect {
     /// Mass per unit area ρ.
     pub density: f32,
+    /// Per spring, or a sheet's moduli and damping ratios.
+    #[reflect(remote = MaterialUnitsReflect)]
+    pub units: MaterialUnits,
     /// Stiffness of stretch springs.
     pub stretch_stiffness: f32,
     /// Stiffness of bend springs.
@@ -345,6 +349,16 @@ pub struct SpringMaterialReflect {
     pub yield_strain: f32,
     /// How fast the strain beyond yield becomes the rest length, per second (0: elastic).
     pub creep_rate: f32,
+}
+
+/// How [`MaterialUnits`] is reflected.
+#[reflect_remote(MaterialUnits)]
+#[derive(Debug)]
+pub enum MaterialUnitsReflect {
+    /// The paper's per-spring stiffness and damping.
+    PerSpring,
+    /// A sheet's moduli and damping ratios.
+    Sheet,
 }
 
 /// The simulation points at rest: positions, normals, rings, springs and masses as §3–§4

@@ -118,9 +118,9 @@ pub(crate) fn apply_materials(
 ) {
     for (entity, material, network, mut springs) in &mut surfaces {
         let material: SpringMaterial = material.0;
-        let stretch = network.stretch.len();
+        let specs = material.springs(network);
         let applied = springs
-            .set_parameters(|i| material.parameters(i, stretch))
+            .set_parameters(|i| (specs[i].stiffness, specs[i].damping))
             .and_then(|()| springs.set_plasticity(material.plasticity()));
         if let Err(e) = applied {
             // Refused: the springs keep their old parameters and the surface runs on.

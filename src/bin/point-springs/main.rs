@@ -30,6 +30,7 @@
 
 mod args;
 mod bench;
+mod chart;
 mod failure;
 mod generate;
 mod info;

@@ -143,6 +143,7 @@ pub(super) fn assemble(
         crossings: check.crossings,
         total_mass: masses.iter().map(|m| f64::from(*m)).sum::<f64>() as f32,
         area: areas.iter().sum::<f64>() as f32,
+        dense_area: 0.0,
         min_diameter: finite_d().fold(f32::INFINITY, f32::min),
         max_diameter: finite_d().fold(0.0, f32::max),
         candidates: mesh.stats.candidates,

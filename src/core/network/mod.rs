@@ -17,7 +17,9 @@
 //!    shape.
 //! 4. **Masses (eq 1).** m = ρ·area(R)/3, with R the point's triangles at the points' true 3D
 //!    positions (the tangent-plane projection would shrink curved regions by the cosine of
-//!    their tilt). Each triangle lies in three regions, so Σm = ρ·(area of the mesh).
+//!    their tilt). Each triangle lies in three regions, so Σm = ρ·(area of the mesh). The
+//!    pipeline then shares the *dense* surface's area out instead
+//!    ([`SpringNetwork::share_dense_area`]), so that Σm does not shrink with the level.
 //!
 //! A point left with fewer than three springs (a straggler no triangle reached) is tied to
 //! its nearest simulation points until it has three; a point without a triangle gets the mean
@@ -37,12 +39,14 @@ use crate::core::simplify::tangent_delaunay::{RingBuilder, RingShape};
 mod build;
 mod check;
 mod collapse;
+mod mass;
 pub mod mesh;
 mod repair;
 mod reshape;
 
 use crate::core::simplify::{MAX_SIMPLIFY_K, MIN_SIMPLIFY_K, MIN_SIMULATION_POINTS};
 use build::{Adjacency, assemble, build_once};
+pub use mass::{MassShare, SHARE_CANDIDATES, dense_point_areas};
 use repair::{Holes, collapsed_from_dense, refinement_points};
 pub use repair::{MAX_REPAIR_DENSE_POINTS, REFINE_ROUNDS};
 
@@ -155,8 +159,12 @@ pub struct NetworkReport {
     pub crossings: usize,
     /// Σm.
     pub total_mass: f32,
-    /// Σ area(R)/3: the surface area the masses stand for (the mesh's area).
+    /// Σ area(R)/3: the area of the network's mesh (the area eq 1's masses stand for).
     pub area: f32,
+    /// The dense surface's area, when the masses are shares of it
+    /// ([`SpringNetwork::share_dense_area`], as [`prepare_surface`](crate::core::pipeline::prepare_surface)
+    /// builds them); 0 when they are eq 1's.
+    pub dense_area: f32,
     /// Smallest region diameter d.
     pub min_diameter: f32,
     /// Largest region diameter d.
@@ -224,6 +232,22 @@ impl SpringNetwork {
             None => self.stretch[i].rest_length,
             Some(b) => self.bend[b].rest_length,
         }
+    }
+
+    /// Each point's area: its mass over the density the masses were built with (eq 1's
+    /// area(R)/3, or its share of the dense surface's area).
+    pub fn point_areas(&self) -> Vec<f32> {
+        let area = if self.report.dense_area > 0.0 {
+            self.report.dense_area
+        } else {
+            self.report.area
+        };
+        let per_mass = f64::from(area) / f64::from(self.report.total_mass);
+        let per_mass = if per_mass.is_finite() { per_mass } else { 0.0 };
+        self.masses
+            .iter()
+            .map(|&m| (f64::from(m) * per_mass) as f32)
+            .collect()
     }
 
     /// The consistent ring of point `i`.

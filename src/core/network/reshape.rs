@@ -44,10 +44,28 @@ impl SpringNetwork {
             rest_length: positions[s.a as usize].distance(positions[s.b as usize]),
             ..*s
         };
-        let (areas, masses, _) = masses_of(positions, &self.triangles, density)?;
+        let (areas, mut masses, _) = masses_of(positions, &self.triangles, density)?;
         let mut report = self.report;
         report.area = areas.iter().sum::<f64>() as f32;
+        if report.dense_area > 0.0 {
+            // Shares of the dense area: each grows or shrinks with the point's region.
+            let (before, _, _) = masses_of(&self.positions, &self.triangles, density)?;
+            let was = f64::from(self.report.total_mass) / f64::from(self.report.dense_area);
+            let density_ratio = f64::from(density) / was;
+            for (i, m) in masses.iter_mut().enumerate() {
+                let grown = areas[i] / before[i];
+                let grown = if grown.is_finite() && grown > 0.0 {
+                    grown
+                } else {
+                    1.0
+                };
+                *m = (f64::from(self.masses[i]) * grown * density_ratio) as f32;
+            }
+        }
         report.total_mass = masses.iter().map(|&m| f64::from(m)).sum::<f64>() as f32;
+        if report.dense_area > 0.0 {
+            report.dense_area = report.total_mass / density;
+        }
         Ok(Self {
             positions: positions.to_vec(),
             normals,

@@ -1,6 +1,7 @@
 //! One preparation pipeline for every caller (the command-line tool, the benches and the
 //! Bevy plugin): a dense cloud and a [`SurfaceConfig`] in, a [`PreparedSurface`] out —
-//! normals, §3 simplification, §4 network and masses, the solver, the §5 transfer
+//! normals, §3 simplification, §4 network and masses (shares of the dense surface's area,
+//! so that the total does not depend on the level), the solver, the §5 transfer
 //! coefficients — with progress reports and a way to stop early. No clock is read here:
 //! callers that want timings measure around the call.
 //!
@@ -43,7 +44,7 @@ use serde::{Deserialize, Serialize};
 use crate::core::PointCloud;
 use crate::core::cloud::CloudError;
 use crate::core::network::{
-    DenseSupport, NetworkConfig, NetworkError, SpringNetwork, build_network_over,
+    DenseSupport, NetworkConfig, NetworkError, SpringNetwork, build_network_over, dense_point_areas,
 };
 use crate::core::normals::pca_normals_of;
 use crate::core::normals::{DEFAULT_NORMAL_K, NormalSource, NormalsError, ensure_normals};
@@ -275,14 +276,14 @@ pub fn prepare_surface(
             }
         }
     });
-    let kept = match kept {
+    let mut kept = match kept {
         Err(SimplifyError::Cancelled) if cancelled => return Err(PrepareError::Cancelled),
         other => other?,
     };
     let (sim_p, sim_n) = kept.gather(positions, normals);
 
     report(Stage::Network, 0.0)?;
-    let network = build_network_over(
+    let mut network = build_network_over(
         &sim_p,
         &sim_n,
         &NetworkConfig {
@@ -299,6 +300,14 @@ pub fn prepare_surface(
             .with_triangles(cloud.faces()),
         ),
     )?;
+    // The dense surface's area: a mesh's where the cloud has faces, else the rings' of §3's
+    // first pass.
+    let areas = if cloud.faces().is_empty() {
+        std::mem::take(&mut kept.point_areas)
+    } else {
+        dense_point_areas(positions, normals, cloud.faces(), config.simplify.k)
+    };
+    network.share_dense_area(positions, normals, &areas, config.material.density)?;
 
     report(Stage::Transfer, 0.0)?;
     let mut solver = Solver::from_network(&network, &config.material, config.solver)?;

@@ -500,6 +500,21 @@ mod tests {
             off.simplify.denoise,
             crate::core::normals::denoise::Denoise::Off
         );
+        // A material is per spring unless it says it is a sheet's.
+        assert_eq!(
+            s.material.units,
+            crate::core::solver::MaterialUnits::PerSpring
+        );
+        let sheet = Scene::from_ron(
+            r#"(cloud: "a.ply", simplify: (target: Some(50)), dt: 0.01, steps: 10,
+                material: (units: Sheet, stretch_stiffness: 200.0, stretch_damping: 0.1))"#,
+        )
+        .unwrap();
+        assert_eq!(
+            sheet.material.units,
+            crate::core::solver::MaterialUnits::Sheet
+        );
+        assert_eq!(sheet.material.stretch_stiffness, 200.0);
     }
 
     #[test]

@@ -210,6 +210,12 @@ pub struct Simplification {
     /// projected positions and normals, in `kept` order (what [`Simplification::gather`]
     /// returns).
     pub projected: Option<(Vec<Vec3>, Vec<Vec3>)>,
+    /// Each input point's share of the surface's area, in input order: a third of the area of
+    /// its local Delaunay ring among its k nearest points, measured in 3D, from the first
+    /// pass (0 for a degenerate ring and for a duplicate; see
+    /// [`dense_point_areas`](crate::core::network::dense_point_areas), which measures the
+    /// same). The masses are shared out from these.
+    pub point_areas: Vec<f32>,
 }
 
 impl Simplification {
@@ -306,6 +312,11 @@ pub fn simplify_with_progress(
     result.kept = back.iter().map(|t| t.0).collect();
     result.diameters = back.iter().map(|t| t.1).collect();
     result.boundary = back.iter().map(|t| t.2).collect();
+    let mut point_areas = vec![0.0; result.point_areas.len()];
+    for (&i, &a) in order.iter().zip(&result.point_areas) {
+        point_areas[i as usize] = a;
+    }
+    result.point_areas = point_areas;
     result.noise_level = noise_level;
     if projected {
         let pick = |v: &[Vec3]| result.kept.iter().map(|&i| v[i as usize]).collect();

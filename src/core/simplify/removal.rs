@@ -11,6 +11,7 @@ use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use rayon::prelude::*;
 
 use super::*;
+use crate::core::simplify::tangent_delaunay::{ring_area, twin_before};
 
 /// Marks an unused neighbour slot.
 const NONE: u32 = u32::MAX;
@@ -39,6 +40,8 @@ pub(super) struct State<'a> {
     /// For each point, the points whose `knn` row holds it.
     rev: Vec<Vec<u32>>,
     pub(super) shapes: Vec<RingShape>,
+    /// Each point's share of the area from the first pass ([`Simplification::point_areas`]).
+    areas: Vec<f32>,
     /// Which slots of each point's `knn` row are ring vertices (bit r = slot r).
     ring_mask: Vec<u64>,
     alive: Vec<bool>,
@@ -81,6 +84,7 @@ impl<'a> State<'a> {
             knn: vec![NONE; n * k],
             rev: vec![Vec::new(); n],
             shapes: vec![RingShape::default(); n],
+            areas: Vec::new(),
             ring_mask: vec![0; n],
             alive: vec![true; n],
             dirty: vec![false; n],
@@ -97,13 +101,14 @@ impl<'a> State<'a> {
     /// Evaluates every remaining point in parallel (the initial pass).
     pub(super) fn evaluate_all(&mut self) {
         let all: Vec<u32> = (0..self.positions.len() as u32).collect();
-        self.evaluate_batch(&all);
+        self.areas = self.evaluate_batch(&all);
     }
 
     /// Re-evaluates `points` in parallel against the current tree and requeues them.
-    fn evaluate_batch(&mut self, points: &[u32]) {
+    /// Returns each one's share of the area (see [`Simplification::point_areas`]).
+    fn evaluate_batch(&mut self, points: &[u32]) -> Vec<f32> {
         let k = self.k;
-        let results: Vec<(RingShape, u64, Vec<u32>)> = {
+        let results: Vec<(RingShape, u64, f32, Vec<u32>)> = {
             let this = &*self;
             points
                 .par_iter()
@@ -111,13 +116,23 @@ impl<'a> State<'a> {
                 .map_init(Scratch::default, |scratch, &i| {
                     let mut row = vec![NONE; k];
                     let (shape, mask) = this.evaluate(i, scratch, &mut row);
-                    (shape, mask, row)
+                    let area = if shape.degenerate
+                        || twin_before(i as usize, &row[..scratch.points.len()], this.positions)
+                    {
+                        0.0
+                    } else {
+                        ring_area(this.positions[i as usize], &scratch.points, &scratch.ring) / 3.0
+                    };
+                    (shape, mask, area, row)
                 })
                 .collect()
         };
-        for (&i, (shape, mask, row)) in points.iter().zip(results) {
+        let mut areas = Vec::with_capacity(points.len());
+        for (&i, (shape, mask, area, row)) in points.iter().zip(results) {
             self.apply(i, shape, mask, &row);
+            areas.push(area);
         }
+        areas
     }
 
     /// The ring shape of point `i` among the remaining points and which slots of its
@@ -282,7 +297,7 @@ impl<'a> State<'a> {
             if stale.is_empty() {
                 return stop;
             }
-            self.evaluate_batch(&stale);
+            let _ = self.evaluate_batch(&stale);
             let threshold = config.max_diameter.unwrap_or(f32::INFINITY);
             let below = stale
                 .iter()
@@ -350,7 +365,7 @@ impl<'a> State<'a> {
         let stale: Vec<u32> = (0..self.positions.len() as u32)
             .filter(|&i| self.alive[i as usize] && self.dirty[i as usize])
             .collect();
-        self.evaluate_batch(&stale);
+        let _ = self.evaluate_batch(&stale);
         let kept: Vec<u32> = (0..self.positions.len() as u32)
             .filter(|&i| self.alive[i as usize])
             .collect();
@@ -369,6 +384,7 @@ impl<'a> State<'a> {
             stop,
             noise_level: 0.0,
             projected: None,
+            point_areas: std::mem::take(&mut self.areas),
         }
     }
 }

@@ -80,6 +80,36 @@ pub struct RingShape {
     pub surrounded: bool,
 }
 
+/// The area of a ring's surface triangles (the region R) measured at the points' 3D
+/// positions, as eq 1 measures it: `ring` as [`RingBuilder::build`] writes it, its slots
+/// indexing `neighbours`.
+pub fn ring_area(centre: Vec3, neighbours: &[Vec3], ring: &[(u32, bool)]) -> f32 {
+    let n = ring.len();
+    let area: f32 = (0..n)
+        .filter(|&r| ring[r].1)
+        .map(|r| {
+            let a = neighbours[ring[r].0 as usize] - centre;
+            let b = neighbours[ring[(r + 1) % n].0 as usize] - centre;
+            0.5 * a.cross(b).length()
+        })
+        .sum();
+    if area.is_finite() { area } else { 0.0 }
+}
+
+/// Whether point `i` coincides with one of a lower index among its `neighbours` (nearest
+/// first; coincidence relative to the farthest one, as the ring builder takes it).
+pub(crate) fn twin_before(i: usize, neighbours: &[u32], positions: &[Vec3]) -> bool {
+    let p = positions[i];
+    let reach2 = neighbours
+        .iter()
+        .map(|&j| positions[j as usize].distance_squared(p))
+        .fold(0.0f32, f32::max);
+    let coincident2 = COINCIDENT_REL * COINCIDENT_REL * reach2;
+    neighbours
+        .iter()
+        .any(|&j| (j as usize) < i && positions[j as usize].distance_squared(p) <= coincident2)
+}
+
 /// Reusable scratch space for [`RingBuilder::build`] (one per thread).
 pub struct RingBuilder {
     tri: DelaunayTriangulation<Projected>,

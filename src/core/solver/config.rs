@@ -179,22 +179,54 @@ impl SolverConfig {
     }
 }
 
+/// How a [`SpringMaterial`]'s stiffness and damping numbers are read.
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, Hash, Default, serde::Serialize, serde::Deserialize,
+)]
+pub enum MaterialUnits {
+    /// The paper's: every stretch spring has the stiffness `stretch_stiffness` (force per
+    /// unit of length change) and the damping `stretch_damping` (force per unit of speed),
+    /// every bend spring the bend ones. A finer network of the same surface has more,
+    /// lighter points with the same springs, so it is a different sheet.
+    #[default]
+    PerSpring,
+    /// A sheet's, so that a coarse and a fine network of one surface model the same sheet:
+    /// - `stretch_stiffness` is the sheet's Young's modulus (force per unit width per unit
+    ///   strain, N/m). A spring of rest length L standing for the area A gets
+    ///   k = 3·modulus·A/L², A being an equal share of each end's area (its mass over the
+    ///   density) among that end's springs of the kind; on a regular triangle lattice this
+    ///   gives the sheet exactly that modulus (with Poisson's ratio 1/3, the only one a
+    ///   lattice of central springs has).
+    /// - `bend_stiffness` is converted the same way: the modulus the bend springs alone
+    ///   would give the sheet in its plane. They resist folding only through the change of
+    ///   their length, so it is not a plate's flexural rigidity (`bench convergence`
+    ///   measures how far that leaves the sag of a bending sheet from converging).
+    /// - `stretch_damping` and `bend_damping` are damping ratios: 1 damps a spring
+    ///   critically for its two ends' masses (c = ratio·2·√(k·m₁m₂/(m₁+m₂))).
+    Sheet,
+}
+
 /// A surface's material: its density (the masses of eq 1) and the stiffness and damping of
-/// the two kinds of spring of a [`SpringNetwork`]. In a scene file:
-/// `material: (density: 1.0, stretch_stiffness: 60.0, bend_stiffness: 20.0)`, every field
+/// the two kinds of spring of a [`SpringNetwork`], per spring or as a sheet's moduli (see
+/// [`MaterialUnits`]). In a scene file:
+/// `material: (density: 1.0, stretch_stiffness: 60.0, bend_stiffness: 20.0)`, or
+/// `material: (units: Sheet, stretch_stiffness: 200.0, stretch_damping: 0.1)`, every field
 /// optional.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct SpringMaterial {
     /// Mass per unit area ρ (eq 1).
     pub density: f32,
-    /// Stiffness of stretch springs (point to ring vertex).
+    /// How the four numbers below are read: per spring (the paper's) or as a sheet's
+    /// moduli and damping ratios.
+    pub units: MaterialUnits,
+    /// Stiffness of stretch springs (point to ring vertex), or the sheet's Young's modulus.
     pub stretch_stiffness: f32,
-    /// Stiffness of bend springs (ring vertex r to r + 2).
+    /// Stiffness of bend springs (ring vertex r to r + 2), or their modulus.
     pub bend_stiffness: f32,
-    /// Damping of stretch springs.
+    /// Damping of stretch springs, or their damping ratio.
     pub stretch_damping: f32,
-    /// Damping of bend springs.
+    /// Damping of bend springs, or their damping ratio.
     pub bend_damping: f32,
     /// Plasticity: the strain (stretch or compression, relative to the rest length) a spring
     /// bears elastically; beyond it the rest length creeps (see [`Self::creep_rate`]).
@@ -215,42 +247,67 @@ impl SpringMaterial {
     }
 
     /// The network's stretch springs, then its bend springs, with this material's
-    /// stiffness and damping (the order [`Self::parameters`] numbers them in).
+    /// stiffness and damping (per spring, or converted from the sheet's moduli and damping
+    /// ratios on the network's geometry: see [`MaterialUnits`]).
     pub fn springs(&self, network: &SpringNetwork) -> Vec<SpringSpec> {
-        let spec = |s: &crate::core::network::Spring, k: f32, kd: f32| SpringSpec {
-            a: s.a,
-            b: s.b,
-            rest_length: s.rest_length,
-            stiffness: k,
-            damping: kd,
-        };
-        let stretch = network
-            .stretch
-            .iter()
-            .map(|s| spec(s, self.stretch_stiffness, self.stretch_damping));
-        let bend = network
-            .bend
-            .iter()
-            .map(|s| spec(s, self.bend_stiffness, self.bend_damping));
-        stretch.chain(bend).collect()
-    }
-
-    /// Stiffness and damping of spring `index` of [`Self::springs`] on a network with
-    /// `stretch` stretch springs: for [`Springs::set_parameters`] when the material
-    /// changes.
-    pub fn parameters(&self, index: usize, stretch: usize) -> (f32, f32) {
-        if index < stretch {
-            (self.stretch_stiffness, self.stretch_damping)
-        } else {
-            (self.bend_stiffness, self.bend_damping)
+        let spec =
+            |s: &crate::core::network::Spring, (stiffness, damping): (f32, f32)| SpringSpec {
+                a: s.a,
+                b: s.b,
+                rest_length: s.rest_length,
+                stiffness,
+                damping,
+            };
+        match self.units {
+            MaterialUnits::PerSpring => {
+                let stretch = (self.stretch_stiffness, self.stretch_damping);
+                let bend = (self.bend_stiffness, self.bend_damping);
+                let stretch = network.stretch.iter().map(|s| spec(s, stretch));
+                let bend = network.bend.iter().map(|s| spec(s, bend));
+                stretch.chain(bend).collect()
+            }
+            MaterialUnits::Sheet => {
+                let areas = network.point_areas();
+                let mut out = Vec::with_capacity(network.stretch.len() + network.bend.len());
+                for (springs, modulus, ratio) in [
+                    (
+                        &network.stretch,
+                        self.stretch_stiffness,
+                        self.stretch_damping,
+                    ),
+                    (&network.bend, self.bend_stiffness, self.bend_damping),
+                ] {
+                    let mut degree = vec![0u32; network.len()];
+                    for s in springs.iter() {
+                        degree[s.a as usize] += 1;
+                        degree[s.b as usize] += 1;
+                    }
+                    out.extend(springs.iter().map(|s| {
+                        let (a, b) = (s.a as usize, s.b as usize);
+                        let share = areas[a] / degree[a] as f32 + areas[b] / degree[b] as f32;
+                        let k = SHEET_LATTICE_FACTOR * modulus * share
+                            / (s.rest_length * s.rest_length);
+                        let (ma, mb) = (network.masses[a], network.masses[b]);
+                        let reduced = ma * mb / (ma + mb);
+                        spec(s, (k, ratio * 2.0 * (k * reduced).sqrt()))
+                    }));
+                }
+                out
+            }
         }
     }
 }
+
+/// The 3 of k = 3·modulus·A/L² ([`MaterialUnits::Sheet`]): a regular triangle lattice of
+/// springs k and spacing h has the Young's modulus 2k/√3 (with Poisson's ratio 1/3), and each
+/// of its springs stands for the area h²/(2√3), so k = 3·E·A/L² is that same relation.
+pub const SHEET_LATTICE_FACTOR: f32 = 3.0;
 
 impl Default for SpringMaterial {
     fn default() -> Self {
         Self {
             density: crate::core::network::DEFAULT_DENSITY,
+            units: MaterialUnits::PerSpring,
             stretch_stiffness: 200.0,
             bend_stiffness: 20.0,
             stretch_damping: 2.0,

@@ -85,8 +85,8 @@ use glam::Vec3;
 use crate::core::network::SpringNetwork;
 
 pub use config::{
-    DEFAULT_YIELD_STRAIN, DampingModel, Integrator, Plasticity, SolverConfig, SpringMaterial,
-    SubstepPolicy, UnknownIntegrator,
+    DEFAULT_YIELD_STRAIN, DampingModel, Integrator, MaterialUnits, Plasticity,
+    SHEET_LATTICE_FACTOR, SolverConfig, SpringMaterial, SubstepPolicy, UnknownIntegrator,
 };
 use parts::non_negative;
 pub use parts::{Anchors, ExternalForces, Masses, PointState, Pressure, Springs, hold_still};

@@ -10,7 +10,7 @@ use egui_plot::{Legend, Line, Plot};
 
 use super::{HISTORY_SECONDS, PanelHistory, SurfacePanel};
 use crate::core::simplify::MIN_SIMULATION_POINTS;
-use crate::core::solver::{Integrator, SubstepPolicy};
+use crate::core::solver::{Integrator, MaterialUnits, SubstepPolicy};
 use crate::plugin::components::{
     DeformableSurface, DenseSurface, PreparationProgress, SimulationPoints, StepOnce,
     SurfaceInView, SurfaceMaterial, SurfaceNetwork, SurfaceSettings, SurfaceSleep, SurfaceSprings,
@@ -294,26 +294,35 @@ fn tuning(
         .show(ui, |ui| simplification(ui, entity, panel, s, world));
 }
 
-/// Stiffness, damping and plasticity (density is fixed once the masses are built).
+/// Stiffness, damping and plasticity (density is fixed once the masses are built), labelled
+/// in the material's units.
 fn material(ui: &mut egui::Ui, s: &mut PanelSurfaceItem) {
     let mut m = s.material.0;
     ui.label(format!("density {} (set when prepared)", m.density));
+    let (stiffness, damping, damping_range) = match m.units {
+        MaterialUnits::PerSpring => ("stiffness", "damping", 0.0..=20.0),
+        MaterialUnits::Sheet => ("modulus", "damping ratio", 0.0..=2.0),
+    };
     ui.add(log_slider(
         &mut m.stretch_stiffness,
         0.1..=10_000.0,
-        "stretch stiffness",
+        format!("stretch {stiffness}"),
     ));
     ui.add(log_slider(
         &mut m.bend_stiffness,
         0.01..=10_000.0,
-        "bend stiffness",
+        format!("bend {stiffness}"),
     ));
     ui.add(slider(
         &mut m.stretch_damping,
-        0.0..=20.0,
-        "stretch damping",
+        damping_range.clone(),
+        format!("stretch {damping}"),
     ));
-    ui.add(slider(&mut m.bend_damping, 0.0..=20.0, "bend damping"));
+    ui.add(slider(
+        &mut m.bend_damping,
+        damping_range,
+        format!("bend {damping}"),
+    ));
     ui.add(log_slider(&mut m.yield_strain, 0.001..=1.0, "yield strain"));
     ui.add(slider(
         &mut m.creep_rate,
@@ -330,7 +339,7 @@ fn material(ui: &mut egui::Ui, s: &mut PanelSurfaceItem) {
 fn slider<'a, N: egui::emath::Numeric>(
     value: &'a mut N,
     range: std::ops::RangeInclusive<N>,
-    text: &str,
+    text: impl Into<egui::WidgetText>,
 ) -> egui::Slider<'a> {
     egui::Slider::new(value, range)
         .clamping(egui::SliderClamping::Edits)
@@ -341,7 +350,7 @@ fn slider<'a, N: egui::emath::Numeric>(
 fn log_slider<'a, N: egui::emath::Numeric>(
     value: &'a mut N,
     range: std::ops::RangeInclusive<N>,
-    text: &str,
+    text: impl Into<egui::WidgetText>,
 ) -> egui::Slider<'a> {
     slider(value, range, text).logarithmic(true)
 }

@@ -3,6 +3,7 @@
 //! carry over between machines).
 
 mod cloth;
+mod convergence;
 mod network;
 #[cfg(feature = "plugin")]
 mod plugin;
@@ -50,6 +51,11 @@ enum Case {
     /// 338 simulation points, poked, with each integrator; ms per step including the
     /// transfer of positions and normals to every dense point, beside the paper's seconds.
     Table1(table1::Args),
+    /// Whether a coarse network models the same surface as a fine one: a sheet and the hat
+    /// sagging under gravity and the sphere pressed by a fixed force, at several levels,
+    /// with the material per spring and as a sheet's moduli, run to equilibrium; the sag
+    /// against the finest level's, and a chart (SVG and PNG).
+    Convergence(convergence::Args),
     /// How preparation (by stage), a step, the transfer and memory grow with the dense and
     /// simulation point counts (the generated sphere of Fig. 5, pressed for a few steps).
     Scale(scale::Args),
@@ -65,5 +71,6 @@ pub fn run(args: Args) -> Result<(), Failure> {
         Case::Network(args) => network::run(&args),
         Case::Table1(args) => table1::run(&args),
         Case::Scale(args) => scale::run(&args),
+        Case::Convergence(args) => convergence::run(&args),
     }
 }

@@ -1,0 +1,361 @@
+//! `point-springs bench convergence`: does a coarse network model the same surface as a fine
+//! one? Three static problems, each prepared at several simplification levels (down from
+//! every dense point as a simulation point), with the material per spring (the paper's) and
+//! as a sheet's moduli (see `MaterialUnits`), run to equilibrium; the measured sag or depth
+//! (on the dense surface, after the transfer) is compared with the same material's finest
+//! level. A Markdown table or JSON, the total mass against ρ times the dense area, and a chart
+//! (SVG and PNG) of the sag over the level.
+
+use std::fmt;
+use std::ops::ControlFlow;
+use std::path::PathBuf;
+
+use bevy_point_springs::core::PointCloud;
+use bevy_point_springs::core::cloud::shapes::{fibonacci_sphere, hat, square_sheet};
+use bevy_point_springs::core::pipeline::{PreparedSurface, SurfaceConfig, prepare_surface};
+use bevy_point_springs::core::simplify::SimplifyConfig;
+use bevy_point_springs::core::solver::{Integrator, MaterialUnits, SolverConfig, SpringMaterial};
+use glam::Vec3;
+use serde::Serialize;
+
+use crate::args::JsonFlag;
+use crate::chart::{Chart, Series};
+use crate::failure::Failure;
+use crate::report::Report;
+
+/// Step of the runs to equilibrium, s (implicit Euler: stable, and its numerical damping
+/// helps the runs settle).
+const DT: f32 = 1.0 / 30.0;
+
+/// Surface density of every problem.
+const DENSITY: f32 = 0.2;
+
+/// Gravity's magnitude, m/s².
+const GRAVITY: f32 = 9.81;
+
+/// Viscous drag, 1/s.
+const DRAG: f32 = 1.0;
+
+/// The per-spring material (the `hat` scene's springs).
+const PER_SPRING: SpringMaterial = SpringMaterial {
+    density: DENSITY,
+    units: MaterialUnits::PerSpring,
+    stretch_stiffness: 60.0,
+    bend_stiffness: 20.0,
+    stretch_damping: 0.6,
+    bend_damping: 0.2,
+    yield_strain: 0.1,
+    creep_rate: 0.0,
+};
+
+/// The sheet material that equals [`PER_SPRING`] on a regular triangle lattice: stretch
+/// modulus 2k/√3, bend modulus 2√3·k_b (bend springs span √3 spacings there).
+fn sheet_material() -> SpringMaterial {
+    SpringMaterial {
+        units: MaterialUnits::Sheet,
+        stretch_stiffness: 2.0 * PER_SPRING.stretch_stiffness / 3f32.sqrt(),
+        bend_stiffness: 2.0 * 3f32.sqrt() * PER_SPRING.bend_stiffness,
+        stretch_damping: 0.3,
+        bend_damping: 0.3,
+        ..PER_SPRING
+    }
+}
+
+/// Total force of the ball's poke, N.
+const BALL_FORCE: f32 = 2.0;
+
+/// Total force of the shell's poke, N.
+const SHELL_FORCE: f32 = 0.5;
+
+/// The gas in the ball: its outside pressure κ (see `Pressure`), N/m².
+const BALL_GAS: f32 = 100.0;
+
+/// Radius of the poked disc around the sphere's top, as a fraction of its radius.
+const POKE_RADIUS: f32 = 0.3;
+
+/// Most steps per run.
+const MAX_STEPS: usize = 100_000;
+
+/// Arguments of `bench convergence`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Fractions of the dense points kept as simulation points; the largest is the
+    /// reference.
+    #[arg(long, value_delimiter = ',', default_values_t = [0.02, 0.05, 0.1, 0.2, 0.5, 1.0])]
+    fractions: Vec<f32>,
+    /// Steps of 1/30 s to equilibrium.
+    #[arg(long, default_value_t = 450)]
+    steps: usize,
+    /// Where the chart goes: this path with `.svg` and `.png`.
+    #[arg(long, default_value = "convergence")]
+    chart: PathBuf,
+    #[command(flatten)]
+    json: JsonFlag,
+}
+
+/// The problems.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+enum Problem {
+    /// A 2 × 2 square sheet (2887 points), pinned along its whole rim, sagging under gravity.
+    Sheet,
+    /// The hat of Fig. 6 (3000 points), pinned at its rim, sagging under gravity.
+    Hat,
+    /// The sphere of Fig. 5 (3203 points) with gas inside, its lower fifth pinned, pressed
+    /// on its top by a fixed total force shared by mass over a disc: a ball.
+    Ball,
+    /// The same sphere without gas, pressed more lightly: a shell, which only its bend
+    /// springs keep from folding in.
+    Shell,
+}
+
+impl Problem {
+    const ALL: [Self; 4] = [Self::Sheet, Self::Hat, Self::Ball, Self::Shell];
+
+    fn cloud(self) -> PointCloud {
+        match self {
+            Self::Sheet => square_sheet(2.0, 0.04),
+            Self::Hat => hat(3000, 1.0, -0.2),
+            Self::Ball | Self::Shell => fibonacci_sphere(3203, 1.0),
+        }
+    }
+
+    /// The direction the load pushes (the sag is measured along it).
+    fn load(self) -> Vec3 {
+        match self {
+            Self::Sheet => Vec3::NEG_Z,
+            Self::Hat | Self::Ball | Self::Shell => Vec3::NEG_Y,
+        }
+    }
+}
+
+/// One run.
+#[derive(Debug, Serialize)]
+struct Row {
+    problem: Problem,
+    /// "per_spring" or "sheet".
+    units: &'static str,
+    fraction: f32,
+    sim_points: usize,
+    dense_points: usize,
+    /// Σm / (ρ · the dense surface's area).
+    mass_ratio: f32,
+    /// The largest displacement of a dense point along the load.
+    sag: f32,
+    /// `sag` over the same material's finest level.
+    relative: f32,
+    /// The largest speed at the end, over `sag` per second: small when settled.
+    residual_speed: f32,
+}
+
+#[derive(Debug, Serialize)]
+struct ConvergenceReport {
+    benchmark: &'static str,
+    steps: usize,
+    dt: f32,
+    rows: Vec<Row>,
+    chart: [String; 2],
+}
+
+impl fmt::Display for ConvergenceReport {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        writeln!(
+            f,
+            "Convergence — {} steps of {:.4} s, implicit Euler, to equilibrium; relative: over the same material's finest level",
+            self.steps, self.dt
+        )?;
+        writeln!(f)?;
+        writeln!(
+            f,
+            "| problem | material | simulation points | dense | Σm / ρA | sag or depth | relative | residual speed |"
+        )?;
+        writeln!(f, "|---|---|---|---|---|---|---|---|")?;
+        for r in &self.rows {
+            writeln!(
+                f,
+                "| {:?} | {} | {} | {} | {:.4} | {:.4} | {:.3} | {:.1e} |",
+                r.problem,
+                r.units,
+                r.sim_points,
+                r.dense_points,
+                r.mass_ratio,
+                r.sag,
+                r.relative,
+                r.residual_speed
+            )?;
+        }
+        writeln!(f)?;
+        writeln!(f, "chart: {} and {}", self.chart[0], self.chart[1])
+    }
+}
+
+impl Report for ConvergenceReport {}
+
+/// Runs `bench convergence`.
+pub fn run(args: &Args) -> Result<(), Failure> {
+    if !(1..=MAX_STEPS).contains(&args.steps) {
+        return Err(Failure::bad_input(format!(
+            "--steps must be between 1 and {MAX_STEPS}"
+        )));
+    }
+    if args.fractions.is_empty() || args.fractions.iter().any(|f| !(*f > 0.0 && *f <= 1.0)) {
+        return Err(Failure::bad_input("--fractions must be in (0, 1]"));
+    }
+    let mut fractions = args.fractions.clone();
+    fractions.sort_by(f32::total_cmp);
+    fractions.dedup();
+    let mut rows = Vec::new();
+    let mut series = Vec::new();
+    for problem in Problem::ALL {
+        let cloud = problem.cloud();
+        for (units, material) in [("per_spring", PER_SPRING), ("sheet", sheet_material())] {
+            let mut runs = Vec::new();
+            for &fraction in &fractions {
+                eprintln!("bench convergence: {problem:?}, {units}, {fraction} of the points");
+                runs.push(settle(problem, &cloud, material, fraction, args.steps)?);
+            }
+            let reference = runs.last().map_or(1.0, |r: &Row| r.sag);
+            for mut r in runs {
+                r.relative = r.sag / reference;
+                r.units = units;
+                rows.push(r);
+            }
+            let name = format!("{problem:?}, {}", units.replace('_', " "));
+            let points = rows
+                .iter()
+                .filter(|r| r.problem == problem && r.units == units)
+                .map(|r| (r.sim_points as f64, f64::from(r.relative)))
+                .collect();
+            series.push(Series { name, points });
+        }
+    }
+    let chart = Chart {
+        title: "Sag and depth at equilibrium over the simplification level".to_owned(),
+        x_label: "simulation points".to_owned(),
+        y_label: "over the finest level's".to_owned(),
+        log_x: true,
+        log_y: false,
+        series,
+        marked: None,
+    };
+    let [svg, png] = chart.write(&args.chart)?;
+    let report = ConvergenceReport {
+        benchmark: "convergence",
+        steps: args.steps,
+        dt: DT,
+        rows,
+        chart: [svg.display().to_string(), png.display().to_string()],
+    };
+    args.json.emit(&report)
+}
+
+/// Prepares `cloud` at `fraction`, loads it as `problem` says and runs it `steps` steps.
+fn settle(
+    problem: Problem,
+    cloud: &PointCloud,
+    material: SpringMaterial,
+    fraction: f32,
+    steps: usize,
+) -> Result<Row, Failure> {
+    let target = ((cloud.len() as f32 * fraction).round() as usize).clamp(20, cloud.len());
+    let gravity = match problem {
+        Problem::Sheet | Problem::Hat => problem.load() * GRAVITY,
+        Problem::Ball | Problem::Shell => Vec3::ZERO,
+    };
+    let config = SurfaceConfig {
+        simplify: SimplifyConfig::target(target),
+        material,
+        solver: SolverConfig {
+            integrator: Integrator::ImplicitEuler,
+            gravity,
+            drag: DRAG,
+            ..SolverConfig::default()
+        },
+        pressure: (problem == Problem::Ball).then_some(BALL_GAS),
+        ..SurfaceConfig::default()
+    };
+    let mut surface = prepare_surface(cloud.clone(), &config, &mut |_| ControlFlow::Continue(()))
+        .map_err(Failure::other)?;
+    load(problem, &mut surface).map_err(Failure::other)?;
+    for _ in 0..steps {
+        surface.solver.step(DT).map_err(Failure::other)?;
+    }
+    surface
+        .dense
+        .follow(&surface.solver.points)
+        .map_err(Failure::other)?;
+    let rest = surface.dense.transfer().rest_positions();
+    let sag = surface
+        .dense
+        .positions()
+        .iter()
+        .zip(rest)
+        .map(|(p, r)| (*p - *r).dot(problem.load()))
+        .fold(0.0f32, f32::max);
+    let fastest = surface
+        .solver
+        .velocities()
+        .iter()
+        .map(|v| v.length())
+        .fold(0.0f32, f32::max);
+    let network = &surface.network;
+    Ok(Row {
+        problem,
+        units: "",
+        fraction,
+        sim_points: network.len(),
+        dense_points: surface.dense.len(),
+        mass_ratio: network.report.total_mass / (DENSITY * network.report.dense_area),
+        sag,
+        relative: 1.0,
+        residual_speed: fastest / sag.max(f32::MIN_POSITIVE),
+    })
+}
+
+/// Pins and loads a prepared surface: the sheet and the hat at their rims (the network's
+/// boundary points), the ball and the shell below y = −0.6, pressed over the disc at
+/// their top.
+fn load(
+    problem: Problem,
+    surface: &mut PreparedSurface,
+) -> Result<(), bevy_point_springs::core::solver::SolverError> {
+    let network = &surface.network;
+    let solver = &mut surface.solver;
+    match problem {
+        Problem::Sheet | Problem::Hat => {
+            for (i, &rim) in network.boundary.iter().enumerate() {
+                if rim {
+                    solver.set_fixed(i, true)?;
+                }
+            }
+        }
+        Problem::Ball | Problem::Shell => {
+            let force = if problem == Problem::Ball {
+                BALL_FORCE
+            } else {
+                SHELL_FORCE
+            };
+            let mut top: Vec<usize> = (0..network.len())
+                .filter(|&i| network.positions[i].distance(Vec3::Y) < POKE_RADIUS)
+                .collect();
+            if top.is_empty() {
+                // A network coarser than the disc: its point nearest the pole.
+                top.extend((0..network.len()).min_by(|&a, &b| {
+                    let d = |i: usize| network.positions[i].distance(Vec3::Y);
+                    d(a).total_cmp(&d(b))
+                }));
+            }
+            let mass: f32 = top.iter().map(|&i| network.masses[i]).sum();
+            for &i in &top {
+                let share = network.masses[i] / mass;
+                solver.set_external_force(i, Vec3::NEG_Y * force * share)?;
+            }
+            for i in 0..network.len() {
+                if network.positions[i].y < -0.6 {
+                    solver.set_fixed(i, true)?;
+                }
+            }
+        }
+    }
+    Ok(())
+}

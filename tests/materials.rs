@@ -1,0 +1,178 @@
+//! Materials that do not depend on the resolution (issue 18): the total mass is ρ times the
+//! surface's area at every simplification level, on a procedural sphere and on real scans,
+//! and a sheet's moduli give the springs of a regular lattice exactly that modulus.
+
+use std::f32::consts::PI;
+use std::ops::ControlFlow;
+
+use bevy_point_springs::core::PointCloud;
+use bevy_point_springs::core::cloud::io::read_cloud;
+use bevy_point_springs::core::cloud::shapes::square_sheet;
+use bevy_point_springs::core::network::dense_point_areas;
+use bevy_point_springs::core::normals::{DEFAULT_NORMAL_K, ensure_normals};
+use bevy_point_springs::core::pipeline::{PreparedSurface, SurfaceConfig, prepare_surface};
+use bevy_point_springs::core::simplify::{DEFAULT_SIMPLIFY_K, SimplifyConfig};
+use bevy_point_springs::core::solver::{MaterialUnits, SpringMaterial};
+
+#[allow(dead_code)]
+#[path = "support/surfaces.rs"]
+mod surfaces;
+use surfaces::*;
+
+/// Density of these tests (not 1, so that a mass mistaken for an area shows).
+const RHO: f32 = 2.5;
+
+fn prepared(cloud: &PointCloud, fraction: f32) -> PreparedSurface {
+    let target = ((cloud.len() as f32 * fraction).round() as usize).max(20);
+    let config = SurfaceConfig {
+        simplify: SimplifyConfig::target(target),
+        material: SpringMaterial {
+            density: RHO,
+            ..SpringMaterial::default()
+        },
+        ..SurfaceConfig::default()
+    };
+    prepare_surface(cloud.clone(), &config, &mut |_| ControlFlow::Continue(())).unwrap()
+}
+
+/// Σm / (ρ·area) − 1 at 2 % and 20 % of the points, and eq 1's for comparison.
+fn mass_errors(cloud: &PointCloud, area: f32) -> Vec<(f32, f32, f32)> {
+    [0.02, 0.2]
+        .into_iter()
+        .map(|fraction| {
+            let s = prepared(cloud, fraction);
+            let total: f32 = s.solver.masses.masses().iter().sum();
+            let eq1 = s.network.report.area / area - 1.0;
+            println!(
+                "{fraction}: {} points, mass {:+.3} %, eq 1 {:+.3} %",
+                s.network.len(),
+                100.0 * (total / (RHO * area) - 1.0),
+                100.0 * eq1,
+            );
+            assert!(
+                s.solver
+                    .masses
+                    .masses()
+                    .iter()
+                    .all(|m| m.is_finite() && *m > 0.0)
+            );
+            (fraction, total / (RHO * area) - 1.0, eq1)
+        })
+        .collect()
+}
+
+#[test]
+fn the_total_mass_is_the_density_times_the_area_at_every_level() {
+    let mut sphere = read_cloud(&asset("sphere3203.ply"), None).unwrap();
+    ensure_normals(&mut sphere, DEFAULT_NORMAL_K).unwrap();
+    for (f, e, _) in mass_errors(&sphere, 4.0 * PI) {
+        assert!(e.abs() < 0.01, "sphere at {f}: {e}");
+    }
+    let mut kitten = read_cloud(&asset("kitten.off"), None).unwrap();
+    ensure_normals(&mut kitten, DEFAULT_NORMAL_K).unwrap();
+    let (kept, full_network) = network_of(&kitten, kitten.len(), 1.0);
+    let full = full_network.report.area;
+    // §3's first pass measures the same shares as the stand-alone measure.
+    let alone = dense_point_areas(
+        kitten.positions(),
+        kitten.normals().unwrap(),
+        &[],
+        DEFAULT_SIMPLIFY_K,
+    );
+    assert_eq!(kept.point_areas.len(), kitten.len());
+    for (i, (a, b)) in kept.point_areas.iter().zip(&alone).enumerate() {
+        assert!(
+            (a - b).abs() <= 1e-6 * b.max(1e-3),
+            "point {i}: {a} against {b}"
+        );
+    }
+    for (f, e, _) in mass_errors(&kitten, full) {
+        assert!(e.abs() < 0.01, "kitten at {f}: {e}");
+    }
+    let mut elephant = read_cloud(&asset("elephant.off"), None).unwrap();
+    ensure_normals(&mut elephant, DEFAULT_NORMAL_K).unwrap();
+    let mesh: f32 = dense_point_areas(
+        elephant.positions(),
+        elephant.normals().unwrap(),
+        elephant.faces(),
+        DEFAULT_SIMPLIFY_K,
+    )
+    .iter()
+    .sum();
+    println!("elephant mesh {mesh}");
+    for (f, e, _) in mass_errors(&elephant, mesh) {
+        assert!(e.abs() < 1e-4, "elephant at {f}: {e}");
+    }
+    let (p, _) = elephant.clone().into_parts();
+    let mut bare = PointCloud::new(p, None).unwrap();
+    ensure_normals(&mut bare, DEFAULT_NORMAL_K).unwrap();
+    for (f, e, _) in mass_errors(&bare, mesh) {
+        assert!(e.abs() < 0.01, "bare elephant at {f}: {e}");
+    }
+}
+
+#[test]
+fn a_sheets_modulus_gives_a_regular_lattice_that_modulus() {
+    // Every point of a triangular lattice a simulation point: interior points have six
+    // stretch springs of the spacing's length and the hexagonal cell's area.
+    let spacing = 0.05;
+    let cloud = square_sheet(1.0, spacing);
+    let modulus = 80.0;
+    let ratio = 0.25;
+    let material = SpringMaterial {
+        density: RHO,
+        units: MaterialUnits::Sheet,
+        stretch_stiffness: modulus,
+        stretch_damping: ratio,
+        ..SpringMaterial::default()
+    };
+    let config = SurfaceConfig {
+        simplify: SimplifyConfig::target(cloud.len()),
+        material,
+        ..SurfaceConfig::default()
+    };
+    let s = prepare_surface(cloud.clone(), &config, &mut |_| ControlFlow::Continue(())).unwrap();
+    assert_eq!(s.network.len(), cloud.len());
+    let specs = material.springs(&s.network);
+    let stretch = s.network.stretch.len();
+    let mut degree = vec![0; s.network.len()];
+    for spring in &s.network.stretch {
+        degree[spring.a as usize] += 1;
+        degree[spring.b as usize] += 1;
+    }
+    let inner = |i: u32| !s.network.boundary[i as usize] && degree[i as usize] == 6;
+    // The lattice's Young's modulus is 2k/√3: k = √3/2 · modulus.
+    let expected = 3f32.sqrt() / 2.0 * modulus;
+    let cell_mass = RHO * 3f32.sqrt() / 2.0 * spacing * spacing;
+    let mut checked = 0;
+    for spec in &specs[..stretch] {
+        if !(inner(spec.a) && inner(spec.b)) {
+            continue;
+        }
+        checked += 1;
+        assert!(
+            (spec.stiffness / expected - 1.0).abs() < 0.01,
+            "{spec:?} against {expected}"
+        );
+        // Critical damping of two equal masses m: 2√(k·m/2).
+        let critical = 2.0 * (spec.stiffness * cell_mass / 2.0).sqrt();
+        assert!(
+            (spec.damping / (ratio * critical) - 1.0).abs() < 0.01,
+            "{spec:?}"
+        );
+    }
+    assert!(
+        checked > stretch / 2,
+        "{checked} of {stretch} springs inside"
+    );
+    // Per spring, the same numbers are the springs' own.
+    let per_spring = SpringMaterial {
+        units: MaterialUnits::PerSpring,
+        ..material
+    };
+    assert!(
+        per_spring.springs(&s.network)[..stretch]
+            .iter()
+            .all(|p| p.stiffness == modulus)
+    );
+}
