@@ -159,6 +159,14 @@ fn simplify_writes_simulation_points_and_reports_the_network() {
     assert_eq!(v["filling_points"], 0);
     // A closed triangulated surface: E = 3V − 6.
     assert_eq!(v["stretch_springs"], 3 * 120 - 6);
+    // The masses share out the dense surface's area, as the simulation's do; the coarse
+    // network's mesh cuts across the convex sphere, so it is smaller.
+    let f = |key: &str| v[key].as_f64().unwrap();
+    assert!(
+        (f("total_mass") / (2.0 * f("dense_area")) - 1.0).abs() < 1e-5,
+        "{v}"
+    );
+    assert!(f("area") < f("dense_area"), "{v}");
     let written = read_cloud(&output, None).unwrap();
     assert_eq!(written.len(), 120);
     assert!(written.has_usable_normals());

@@ -3,7 +3,7 @@
 //! system font is needed).
 
 use std::path::{Path, PathBuf};
-use std::sync::Once;
+use std::sync::OnceLock;
 
 use plotters::coord::ranged1d::{AsRangedCoord, ValueFormatter};
 use plotters::prelude::*;
@@ -199,17 +199,20 @@ fn tick_label(v: f64, log: bool) -> String {
     }
 }
 
-/// Registers the typeface once per process.
+/// Registers the typeface once per process (every call gives that one attempt's outcome).
 fn register_font() -> Result<(), Failure> {
-    static ONCE: Once = Once::new();
-    let mut result = Ok(());
-    ONCE.call_once(|| {
-        result = plotters::style::register_font(
+    static REGISTERED: OnceLock<bool> = OnceLock::new();
+    let registered = *REGISTERED.get_or_init(|| {
+        plotters::style::register_font(
             FAMILY,
             FontStyle::Normal,
             epaint_default_fonts::UBUNTU_LIGHT,
         )
-        .map_err(|_| Failure::other("the chart typeface could not be read"));
+        .is_ok()
     });
-    result
+    if registered {
+        Ok(())
+    } else {
+        Err(Failure::other("the chart typeface could not be read"))
+    }
 }

@@ -8,6 +8,7 @@ use std::time::Instant;
 use bevy_point_springs::core::PointCloud;
 use bevy_point_springs::core::network::{
     DEFAULT_DENSITY, DenseSupport, NetworkConfig, NetworkReport, SpringNetwork, build_network_over,
+    dense_areas_after,
 };
 use bevy_point_springs::core::normals::{DEFAULT_NORMAL_K, NormalSource, ensure_normals};
 use bevy_point_springs::core::simplify::{
@@ -33,7 +34,8 @@ pub struct Args {
     /// Neighbours per point for the local Delaunay rings (the paper's k, 10–20).
     #[arg(short, default_value_t = DEFAULT_SIMPLIFY_K)]
     k: usize,
-    /// Surface density ρ (mass per unit area) for the masses m = ρ·area(R)/3.
+    /// Surface density ρ (mass per unit area): each simulation point's mass is ρ times its
+    /// share of the dense surface's area, as the simulation prepares it.
     #[arg(long, default_value_t = DEFAULT_DENSITY)]
     density: f32,
     /// Decide on the points projected on local plane fits: when the cloud measures noisy
@@ -113,9 +115,11 @@ struct SimplifyReport {
     /// Whether the network is a fine mesh (the file's faces, or the dense points' own network)
     /// collapsed onto the simulation points.
     collapsed_from_dense: bool,
-    /// Σm.
+    /// Σm: ρ times the dense surface's area.
     total_mass: f32,
-    /// Σ area(R)/3.
+    /// The dense surface's area, which the masses share out.
+    dense_area: f32,
+    /// Σ area(R)/3: the network's own mesh's area (eq 1's).
     area: f32,
     /// Smallest region diameter d, if finite.
     min_diameter: Option<f32>,
@@ -198,8 +202,8 @@ impl fmt::Display for SimplifyReport {
         )?;
         writeln!(
             f,
-            "mass          {} (ρ = {}, area {})",
-            self.total_mass, self.density, self.area
+            "mass          {} (ρ = {} on the dense surface's area {}; the network's mesh: {})",
+            self.total_mass, self.density, self.dense_area, self.area
         )?;
         writeln!(
             f,
@@ -294,7 +298,21 @@ fn network_of(
         kept.projected.is_some(),
     )
     .with_triangles(cloud.faces());
-    build_network_over(&positions, &normals, config, Some(&dense)).map_err(Failure::bad_input)
+    let mut network = build_network_over(&positions, &normals, config, Some(&dense))
+        .map_err(Failure::bad_input)?;
+    // The masses as the simulation has them: shares of the dense surface's area.
+    let areas = dense_areas_after(
+        kept,
+        cloud.positions(),
+        dense_normals,
+        cloud.faces(),
+        config.k,
+    )
+    .map_err(Failure::bad_input)?;
+    network
+        .share_dense_area(cloud.positions(), dense_normals, &areas, config.density)
+        .map_err(Failure::bad_input)?;
+    Ok(network)
 }
 
 /// How long `simplify` took.
@@ -357,6 +375,7 @@ fn report(
         faces: cloud.faces().len(),
         collapsed_from_dense: r.collapsed_from_dense,
         total_mass: r.total_mass,
+        dense_area: r.dense_area,
         area: r.area,
         min_diameter: finite(r.min_diameter),
         max_diameter: finite(r.max_diameter),

@@ -14,8 +14,10 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use super::{NetworkError, SpringNetwork};
+use crate::core::cloud::check_points;
 use crate::core::cloud::knn::KnnIndex;
-use crate::core::simplify::tangent_delaunay::{RingBuilder, ring_area, twin_before};
+use crate::core::simplify::Simplification;
+use crate::core::simplify::tangent_delaunay::{RingBuilder, ring_voronoi_area, twin_before};
 
 /// Simulation points looked at around a dense point for the nearest one on its side of the
 /// surface (the nearest at all is taken when none of these is).
@@ -28,23 +30,32 @@ const CHUNK: usize = 4096;
 ///
 /// - With a mesh's `faces` (each naming three points): a third of the area of each face at
 ///   the point, so the shares add up to the mesh's area exactly.
-/// - Without, or for a point in no face: a third of the area of its local Delaunay ring
-///   (the §3 construction among its `k` nearest points), its triangles measured at the
-///   points' 3D positions as eq 1 measures them. Consistent rings cover every triangle three
-///   times, so the shares add up to the area of the mesh the rings make of the dense points.
+/// - Without, or for a point in no face: its mixed Voronoi area within its local Delaunay
+///   ring (the §3 construction among its `k` nearest points), the triangles measured at the
+///   points' 3D positions as eq 1 measures them (see
+///   [`ring_voronoi_area`](crate::core::simplify::tangent_delaunay::ring_voronoi_area)). The
+///   shares add up to the area of the mesh the rings make of the dense points, even where
+///   neighbouring rings split a quad of points on a circle by different diagonals.
 ///   A point whose ring is degenerate (collinear neighbours) gets 0, and so does a point
 ///   that coincides with one of a lower index (a duplicate: its twin has the area).
 ///   [`Simplification::point_areas`](crate::core::simplify::Simplification::point_areas)
 ///   holds the same shares, measured in §3's first pass at no extra search.
 ///
-/// `normals` are unit and as many as `positions`.
+/// Points and normals of different counts, a non-finite position, a zero or non-finite
+/// normal, and a face naming a point out of range or one point twice are typed errors.
 pub fn dense_point_areas(
     positions: &[Vec3],
     normals: &[Vec3],
     faces: &[[u32; 3]],
     k: usize,
-) -> Vec<f32> {
+) -> Result<Vec<f32>, NetworkError> {
+    check_points(positions, normals, 0)?;
     let n = positions.len();
+    if let Some(f) = faces.iter().position(|&[a, b, c]| {
+        a == b || b == c || a == c || [a, b, c].iter().any(|&i| i as usize >= n)
+    }) {
+        return Err(NetworkError::InvalidFace(f));
+    }
     let mut areas = vec![0.0f64; n];
     for &[a, b, c] in faces {
         let p = |i: u32| positions[i as usize];
@@ -55,7 +66,7 @@ pub fn dense_point_areas(
     }
     let missing: Vec<usize> = (0..n).filter(|&i| areas[i] == 0.0).collect();
     if missing.is_empty() {
-        return areas.into_iter().map(|a| a as f32).collect();
+        return Ok(areas.into_iter().map(|a| a as f32).collect());
     }
     let index = KnnIndex::build(positions);
     let ring_thirds: Vec<f32> = missing
@@ -84,7 +95,7 @@ pub fn dense_point_areas(
                     if shape.degenerate || twin_before(i, &found, positions) {
                         return 0.0;
                     }
-                    ring_area(positions[i], &neighbours, &ring) / 3.0
+                    ring_voronoi_area(positions[i], &neighbours, &ring)
                 })
                 .collect::<Vec<_>>()
         })
@@ -92,7 +103,26 @@ pub fn dense_point_areas(
     for (&i, a) in missing.iter().zip(ring_thirds) {
         areas[i] = f64::from(a);
     }
-    areas.into_iter().map(|a| a as f32).collect()
+    Ok(areas.into_iter().map(|a| a as f32).collect())
+}
+
+/// The dense points' shares of the area after §3 has run on them: [`dense_point_areas`]
+/// with a mesh's `faces`, and otherwise the shares §3's first pass measured
+/// ([`Simplification::point_areas`]), so that no ring is built twice. `k` is the
+/// neighbours §3 used.
+pub fn dense_areas_after(
+    kept: &Simplification,
+    positions: &[Vec3],
+    normals: &[Vec3],
+    faces: &[[u32; 3]],
+    k: usize,
+) -> Result<Vec<f32>, NetworkError> {
+    if faces.is_empty() && kept.point_areas.len() == positions.len() {
+        check_points(positions, normals, 0)?;
+        Ok(kept.point_areas.clone())
+    } else {
+        dense_point_areas(positions, normals, faces, k)
+    }
 }
 
 /// What [`SpringNetwork::share_dense_area`] did.
@@ -113,7 +143,9 @@ impl SpringNetwork {
     /// mass), and each mass is `density` times the area it received. A simulation point that
     /// received nothing keeps eq 1's area; the masses are then scaled so that their sum is
     /// `density` times the dense area exactly. The report's `total_mass` and `dense_area`
-    /// follow.
+    /// follow. Bad dense points (as for [`dense_point_areas`]), a count of areas that is not
+    /// theirs, a negative or non-finite area, and a bad density are typed errors, and leave
+    /// the masses as they were.
     pub fn share_dense_area(
         &mut self,
         dense_positions: &[Vec3],
@@ -124,18 +156,18 @@ impl SpringNetwork {
         if !(density > 0.0 && density.is_finite()) {
             return Err(NetworkError::InvalidDensity(density));
         }
-        let d = dense_positions.len();
-        if dense_normals.len() != d || dense_areas.len() != d {
-            return Err(NetworkError::LengthMismatch {
-                positions: d,
-                normals: dense_normals.len().min(dense_areas.len()),
+        check_points(dense_positions, dense_normals, 1)?;
+        if dense_areas.len() != dense_positions.len() {
+            return Err(NetworkError::AreaCount {
+                points: dense_positions.len(),
+                areas: dense_areas.len(),
             });
         }
         if let Some(i) = dense_areas
             .iter()
             .position(|a| !(a.is_finite() && *a >= 0.0))
         {
-            return Err(NetworkError::InvalidPoint(i));
+            return Err(NetworkError::InvalidArea(i));
         }
         let n = self.len();
         let index = KnnIndex::build(&self.positions);

@@ -46,7 +46,7 @@ mod reshape;
 
 use crate::core::simplify::{MAX_SIMPLIFY_K, MIN_SIMPLIFY_K, MIN_SIMULATION_POINTS};
 use build::{Adjacency, assemble, build_once};
-pub use mass::{MassShare, SHARE_CANDIDATES, dense_point_areas};
+pub use mass::{MassShare, SHARE_CANDIDATES, dense_areas_after, dense_point_areas};
 use repair::{Holes, collapsed_from_dense, refinement_points};
 pub use repair::{MAX_REPAIR_DENSE_POINTS, REFINE_ROUNDS};
 
@@ -113,6 +113,20 @@ pub enum NetworkError {
     /// Point indices are stored in 32 bits.
     #[error("a network supports at most 2^32 - 1 points, got {0}")]
     TooManyPoints(usize),
+    /// Dense points and their areas differ in number.
+    #[error("{points} dense points but {areas} areas")]
+    AreaCount {
+        /// Number of dense points.
+        points: usize,
+        /// Number of areas.
+        areas: usize,
+    },
+    /// A dense point's area is negative or not finite.
+    #[error("dense point {0} has a negative or non-finite area")]
+    InvalidArea(usize),
+    /// A face names a point that does not exist, or the same point twice.
+    #[error("face {0} names a point out of range or one point twice")]
+    InvalidFace(usize),
 }
 
 /// A spring between two simulation points.
@@ -483,12 +497,18 @@ fn validate(
     if !(config.density > 0.0 && config.density.is_finite()) {
         return Err(NetworkError::InvalidDensity(config.density));
     }
-    check_points(positions, normals, MIN_SIMULATION_POINTS).map_err(|problem| match problem {
-        PointsProblem::LengthMismatch { positions, normals } => {
-            NetworkError::LengthMismatch { positions, normals }
+    check_points(positions, normals, MIN_SIMULATION_POINTS).map_err(NetworkError::from)
+}
+
+impl From<PointsProblem> for NetworkError {
+    fn from(problem: PointsProblem) -> Self {
+        match problem {
+            PointsProblem::LengthMismatch { positions, normals } => {
+                Self::LengthMismatch { positions, normals }
+            }
+            PointsProblem::TooMany(n) => Self::TooManyPoints(n),
+            PointsProblem::TooFew { needed, found } => Self::TooFewPoints { needed, found },
+            PointsProblem::Invalid(i) => Self::InvalidPoint(i),
         }
-        PointsProblem::TooMany(n) => NetworkError::TooManyPoints(n),
-        PointsProblem::TooFew { needed, found } => NetworkError::TooFewPoints { needed, found },
-        PointsProblem::Invalid(i) => NetworkError::InvalidPoint(i),
-    })
+    }
 }

@@ -44,7 +44,7 @@ use serde::{Deserialize, Serialize};
 use crate::core::PointCloud;
 use crate::core::cloud::CloudError;
 use crate::core::network::{
-    DenseSupport, NetworkConfig, NetworkError, SpringNetwork, build_network_over, dense_point_areas,
+    DenseSupport, NetworkConfig, NetworkError, SpringNetwork, build_network_over, dense_areas_after,
 };
 use crate::core::normals::pca_normals_of;
 use crate::core::normals::{DEFAULT_NORMAL_K, NormalSource, NormalsError, ensure_normals};
@@ -276,7 +276,7 @@ pub fn prepare_surface(
             }
         }
     });
-    let mut kept = match kept {
+    let kept = match kept {
         Err(SimplifyError::Cancelled) if cancelled => return Err(PrepareError::Cancelled),
         other => other?,
     };
@@ -300,13 +300,7 @@ pub fn prepare_surface(
             .with_triangles(cloud.faces()),
         ),
     )?;
-    // The dense surface's area: a mesh's where the cloud has faces, else the rings' of §3's
-    // first pass.
-    let areas = if cloud.faces().is_empty() {
-        std::mem::take(&mut kept.point_areas)
-    } else {
-        dense_point_areas(positions, normals, cloud.faces(), config.simplify.k)
-    };
+    let areas = dense_areas_after(&kept, positions, normals, cloud.faces(), config.simplify.k)?;
     network.share_dense_area(positions, normals, &areas, config.material.density)?;
 
     report(Stage::Transfer, 0.0)?;

@@ -210,9 +210,9 @@ pub struct Simplification {
     /// projected positions and normals, in `kept` order (what [`Simplification::gather`]
     /// returns).
     pub projected: Option<(Vec<Vec3>, Vec<Vec3>)>,
-    /// Each input point's share of the surface's area, in input order: a third of the area of
-    /// its local Delaunay ring among its k nearest points, measured in 3D, from the first
-    /// pass (0 for a degenerate ring and for a duplicate; see
+    /// Each input point's share of the surface's area, in input order: its mixed Voronoi
+    /// area within its local Delaunay ring among its k nearest points, measured in 3D, from
+    /// the first pass (0 for a degenerate ring and for a duplicate; see
     /// [`dense_point_areas`](crate::core::network::dense_point_areas), which measures the
     /// same). The masses are shared out from these.
     pub point_areas: Vec<f32>,

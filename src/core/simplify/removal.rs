@@ -11,7 +11,7 @@ use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use rayon::prelude::*;
 
 use super::*;
-use crate::core::simplify::tangent_delaunay::{ring_area, twin_before};
+use crate::core::simplify::tangent_delaunay::{ring_voronoi_area, twin_before};
 
 /// Marks an unused neighbour slot.
 const NONE: u32 = u32::MAX;
@@ -121,7 +121,11 @@ impl<'a> State<'a> {
                     {
                         0.0
                     } else {
-                        ring_area(this.positions[i as usize], &scratch.points, &scratch.ring) / 3.0
+                        ring_voronoi_area(
+                            this.positions[i as usize],
+                            &scratch.points,
+                            &scratch.ring,
+                        )
                     };
                     (shape, mask, area, row)
                 })

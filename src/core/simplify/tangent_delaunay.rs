@@ -22,7 +22,7 @@
 //!
 //! [spade]: https://crates.io/crates/spade
 
-use glam::{DVec2, Vec3};
+use glam::{DVec2, DVec3, Vec3};
 use spade::handles::FixedVertexHandle;
 use spade::{DelaunayTriangulation, HasPosition, Point2, Triangulation};
 
@@ -80,20 +80,46 @@ pub struct RingShape {
     pub surrounded: bool,
 }
 
-/// The area of a ring's surface triangles (the region R) measured at the points' 3D
-/// positions, as eq 1 measures it: `ring` as [`RingBuilder::build`] writes it, its slots
-/// indexing `neighbours`.
-pub fn ring_area(centre: Vec3, neighbours: &[Vec3], ring: &[(u32, bool)]) -> f32 {
+/// The centre's share of the area of its ring's surface triangles, measured at the points'
+/// 3D positions: its mixed Voronoi area (Meyer, Desbrun, Schröder and Barr 2003), the part
+/// of each triangle nearer the centre than its other corners (a quarter or a half of an
+/// obtuse triangle). Over a consistent mesh the shares add up to its area exactly, and where
+/// four points lie on a circle the share is the same whichever diagonal a ring took, so
+/// neighbouring rings that chose differently still add up (a third of each triangle would
+/// count such a quad up to twice: +30 % on CGAL's latitude–longitude `sphere926.pwn`).
+/// `ring` as [`RingBuilder::build`] writes it, its slots indexing `neighbours`.
+pub fn ring_voronoi_area(centre: Vec3, neighbours: &[Vec3], ring: &[(u32, bool)]) -> f32 {
     let n = ring.len();
-    let area: f32 = (0..n)
+    let p = centre.as_dvec3();
+    let area: f64 = (0..n)
         .filter(|&r| ring[r].1)
         .map(|r| {
-            let a = neighbours[ring[r].0 as usize] - centre;
-            let b = neighbours[ring[(r + 1) % n].0 as usize] - centre;
-            0.5 * a.cross(b).length()
+            let q = neighbours[ring[r].0 as usize].as_dvec3();
+            let s = neighbours[ring[(r + 1) % n].0 as usize].as_dvec3();
+            voronoi_share(p, q, s)
         })
         .sum();
-    if area.is_finite() { area } else { 0.0 }
+    if area.is_finite() { area as f32 } else { 0.0 }
+}
+
+/// The part of triangle (p, q, r) nearer p than q and r, or a half (obtuse at p) or a
+/// quarter (obtuse elsewhere) of it.
+fn voronoi_share(p: DVec3, q: DVec3, r: DVec3) -> f64 {
+    let twice_area = (q - p).cross(r - p).length();
+    if twice_area <= 0.0 {
+        return 0.0;
+    }
+    let at_p = (q - p).dot(r - p);
+    let at_q = (p - q).dot(r - q);
+    let at_r = (p - r).dot(q - r);
+    if at_p < 0.0 {
+        twice_area / 4.0
+    } else if at_q < 0.0 || at_r < 0.0 {
+        twice_area / 8.0
+    } else {
+        // (|pr|² cot q + |pq|² cot r) / 8, with cot = dot / (2·area).
+        ((r - p).length_squared() * at_q + (q - p).length_squared() * at_r) / (8.0 * twice_area)
+    }
 }
 
 /// Whether point `i` coincides with one of a lower index among its `neighbours` (nearest

@@ -142,7 +142,7 @@ struct Row {
     mass_ratio: f32,
     /// The largest displacement of a dense point along the load.
     sag: f32,
-    /// `sag` over the same material's finest level.
+    /// `sag` over the same material's finest level (set once that level has run).
     relative: f32,
     /// The largest speed at the end, over `sag` per second: small when settled.
     residual_speed: f32,
@@ -208,25 +208,25 @@ pub fn run(args: &Args) -> Result<(), Failure> {
     let mut series = Vec::new();
     for problem in Problem::ALL {
         let cloud = problem.cloud();
-        for (units, material) in [("per_spring", PER_SPRING), ("sheet", sheet_material())] {
+        for material in [PER_SPRING, sheet_material()] {
+            let units = units_name(material.units);
             let mut runs = Vec::new();
             for &fraction in &fractions {
                 eprintln!("bench convergence: {problem:?}, {units}, {fraction} of the points");
                 runs.push(settle(problem, &cloud, material, fraction, args.steps)?);
             }
             let reference = runs.last().map_or(1.0, |r: &Row| r.sag);
-            for mut r in runs {
+            for r in &mut runs {
                 r.relative = r.sag / reference;
-                r.units = units;
-                rows.push(r);
             }
-            let name = format!("{problem:?}, {}", units.replace('_', " "));
-            let points = rows
-                .iter()
-                .filter(|r| r.problem == problem && r.units == units)
-                .map(|r| (r.sim_points as f64, f64::from(r.relative)))
-                .collect();
-            series.push(Series { name, points });
+            series.push(Series {
+                name: format!("{problem:?}, {}", units.replace('_', " ")),
+                points: runs
+                    .iter()
+                    .map(|r| (r.sim_points as f64, f64::from(r.relative)))
+                    .collect(),
+            });
+            rows.extend(runs);
         }
     }
     let chart = Chart {
@@ -247,6 +247,14 @@ pub fn run(args: &Args) -> Result<(), Failure> {
         chart: [svg.display().to_string(), png.display().to_string()],
     };
     args.json.emit(&report)
+}
+
+/// The name of a material's units in the report.
+fn units_name(units: MaterialUnits) -> &'static str {
+    match units {
+        MaterialUnits::PerSpring => "per_spring",
+        MaterialUnits::Sheet => "sheet",
+    }
 }
 
 /// Prepares `cloud` at `fraction`, loads it as `problem` says and runs it `steps` steps.
@@ -292,23 +300,17 @@ fn settle(
         .zip(rest)
         .map(|(p, r)| (*p - *r).dot(problem.load()))
         .fold(0.0f32, f32::max);
-    let fastest = surface
-        .solver
-        .velocities()
-        .iter()
-        .map(|v| v.length())
-        .fold(0.0f32, f32::max);
     let network = &surface.network;
     Ok(Row {
         problem,
-        units: "",
+        units: units_name(material.units),
         fraction,
         sim_points: network.len(),
         dense_points: surface.dense.len(),
         mass_ratio: network.report.total_mass / (DENSITY * network.report.dense_area),
         sag,
         relative: 1.0,
-        residual_speed: fastest / sag.max(f32::MIN_POSITIVE),
+        residual_speed: surface.solver.points.max_speed() / sag.max(f32::MIN_POSITIVE),
     })
 }
 
