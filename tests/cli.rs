@@ -512,6 +512,105 @@ fn bench_convergence_runs_every_problem_to_equilibrium_with_both_materials() {
 }
 
 #[test]
+fn bench_report_quick_writes_every_file_and_meets_the_error_goal() {
+    let out = scratch("report");
+    let assets = asset("");
+    run_ok(&[
+        "bench",
+        "report",
+        "--quick",
+        "--out",
+        out.to_str().unwrap(),
+        "--assets",
+        assets.to_str().unwrap(),
+    ]);
+    // The CSV: the columns, one row per scene, level and integrator.
+    let csv = std::fs::read_to_string(out.join("report.csv")).unwrap();
+    let mut lines = csv.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    for column in [
+        "scene",
+        "integrator",
+        "dt",
+        "sim_points",
+        "dense_points",
+        "ms_step",
+        "ms_frame",
+        "rms_error",
+        "max_error",
+        "normal_error_deg",
+        "stable",
+    ] {
+        assert!(header.contains(&column), "{column} missing from {header:?}");
+    }
+    let col = |name: &str| header.iter().position(|c| *c == name).unwrap();
+    let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
+    assert_eq!(rows.len(), 4 * 3 * 3, "4 scenes, 3 levels, 3 integrators");
+    let num = |r: &[&str], name: &str| r[col(name)].parse::<f64>().unwrap();
+    for r in &rows {
+        assert_eq!(r[col("stable")], "true", "{r:?}");
+        assert!(num(r, "ms_frame") >= num(r, "ms_step"), "{r:?}");
+        let (rms, max) = (num(r, "rms_error"), num(r, "max_error"));
+        assert!((0.0..=max).contains(&rms) && max < 0.2, "{r:?}");
+        // Every dense point simulated, any integrator: the reference's equilibrium.
+        if r[col("fraction")] == "1" {
+            assert!(rms < 1e-3, "{r:?}");
+            assert_eq!(r[col("sim_points")], r[col("dense_points")], "{r:?}");
+        }
+    }
+    // Every scene and integrator: coarser is further from the reference than full.
+    for full in rows.iter().filter(|r| r[col("fraction")] == "1") {
+        let tenth = rows
+            .iter()
+            .find(|r| r[0] == full[0] && r[1] == full[1] && r[col("fraction")] == "0.1")
+            .unwrap();
+        assert!(
+            num(tenth, "rms_error") > num(full, "rms_error"),
+            "{tenth:?}"
+        );
+        let speedup = num(full, "ms_frame") / num(tenth, "ms_frame");
+        assert!((num(tenth, "speedup") - speedup).abs() < 0.01 * speedup);
+    }
+    // The summary: Table 1, and at 10 % an error under 1 % on every scene.
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    let table1 = summary["table1"].as_array().unwrap();
+    assert_eq!(table1.len(), 9);
+    assert_eq!(table1[8]["sim_points"], 338);
+    assert_eq!(table1[8]["paper_s"], 0.42);
+    let best = summary["best_at_10pct"].as_array().unwrap();
+    let scenes: Vec<&str> = best.iter().map(|b| b["scene"].as_str().unwrap()).collect();
+    assert_eq!(scenes, ["sphere", "hat", "sheet", "kitten"]);
+    for b in best {
+        assert!(b["rms_error"].as_f64().unwrap() < 0.01, "{b}");
+    }
+    // The Markdown, and a chart per scene with its Pareto front.
+    let md = std::fs::read_to_string(out.join("report.md")).unwrap();
+    assert!(md.contains("## kitten") && md.contains("Table 1"));
+    for scene in ["sphere", "hat", "sheet", "kitten"] {
+        let svg = std::fs::read_to_string(out.join(format!("report_{scene}.svg"))).unwrap();
+        assert!(svg.contains("Pareto front") && svg.contains("implicit-euler"));
+        let png = std::fs::metadata(out.join(format!("report_{scene}.png"))).unwrap();
+        assert!(png.len() > 10_000, "{png:?}");
+    }
+    let nowhere = scratch("report-nowhere");
+    let bad = run(&[
+        "bench",
+        "report",
+        "--quick",
+        "--out",
+        nowhere.to_str().unwrap(),
+        "--assets",
+        "no/such/folder",
+    ]);
+    assert_eq!(bad.status.code(), Some(2));
+    assert!(
+        !nowhere.exists(),
+        "nothing is made for a report that cannot run"
+    );
+}
+
+#[test]
 fn bench_network_reports_each_level() {
     let hat = scratch("hat.ply");
     run_ok(&[

@@ -6,7 +6,7 @@
 use std::path::{Path, PathBuf};
 
 use bevy_point_springs::core::cloud::knn::KnnIndex;
-use bevy_point_springs::core::scene::{Deformed, Scene, SceneRun};
+use bevy_point_springs::core::scene::{Deformed, Scene, SceneError, SceneRun};
 use glam::Vec3;
 
 fn scene_path(name: &str) -> PathBuf {
@@ -238,4 +238,68 @@ fn scene_errors_name_the_problem() {
     std::fs::write(&huge, vec![b' '; 2 << 20]).unwrap();
     let err = Scene::load(&huge).unwrap_err().to_string();
     assert!(err.contains("too large"), "{err}");
+}
+
+/// The hat of Fig. 6 sagging under gravity from its rim for a second: a scene that asks for
+/// its level by error instead of by count.
+fn sagging_hat(budget: Option<f32>) -> Result<Scene, SceneError> {
+    Scene::from_ron(&format!(
+        r#"(
+            cloud: "../hat3000.ply",
+            material: (units: Sheet, stretch_stiffness: 70.0, bend_stiffness: 70.0,
+                       stretch_damping: 0.3, bend_damping: 0.3),
+            solver: (integrator: ImplicitEuler, gravity: (0.0, -9.81, 0.0), drag: 2.0),
+            dt: 0.016666668,
+            steps: 60,
+            pins: [Box(min: (-2.0, -0.25, -2.0), max: (2.0, 0.0, 2.0))],
+            error_budget: {budget:?},
+        )"#
+    ))
+}
+
+#[test]
+fn an_error_budget_chooses_the_coarsest_level_predicted_within_it() {
+    let hat = bevy_point_springs::core::cloud::io::read_cloud(
+        &Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/hat3000.ply"),
+        None,
+    )
+    .unwrap();
+    let scene = sagging_hat(Some(0.01)).expect("a budget stands in for a target");
+    let choice = scene.choose_level(&hat, 0.01).unwrap();
+    assert!(choice.predicted <= 0.01, "{choice:?}");
+    assert!(
+        bevy_point_springs::core::scene::BUDGET_LADDER.contains(&choice.fraction),
+        "{choice:?}"
+    );
+    // The levels climb, each with its difference to the next, until the chosen one.
+    assert!(choice.levels.len() >= 2);
+    for pair in choice.levels.windows(2) {
+        assert_eq!(pair[1].fraction, pair[0].fraction * 2.0);
+        assert!(pair[0].sim_points < pair[1].sim_points);
+        let d = pair[0].difference.expect("a difference to the finer level");
+        assert!(d > 0.0 && d < 0.05, "{pair:?}");
+    }
+    assert!(choice.levels.last().unwrap().difference.is_none());
+    assert!((choice.predict(choice.fraction) - choice.predicted).abs() < 1e-6);
+    assert!(choice.predict(0.5) < choice.predicted && choice.predict(1.0) == 0.0);
+    // Preparing the scene resolves its budget into the chosen count.
+    let run = scene.prepare_run(hat.clone()).unwrap();
+    assert_eq!(run.solver().len(), choice.target);
+    assert_eq!(run.scene.error_budget, None);
+    assert_eq!(run.scene.simplify.target, Some(choice.target));
+    // A loose budget takes the coarsest level; one no level meets, every dense point.
+    let loose = scene.choose_level(&hat, 0.5).unwrap();
+    assert_eq!((loose.fraction, loose.levels.len()), (0.02, 2), "{loose:?}");
+    let tight = scene.choose_level(&hat, 1e-7).unwrap();
+    assert_eq!(
+        (tight.fraction, tight.target, tight.predicted),
+        (1.0, 3000, 0.0)
+    );
+    assert_eq!(tight.levels.len(), 6, "every level of the ladder ran");
+    // Budgets that are not errors at all are refused, by the scene and by the call.
+    for bad in [0.0, 1.0, -0.1, f32::NAN, f32::INFINITY] {
+        let refused = sagging_hat(Some(bad)).map(|s| s.validate());
+        assert!(!matches!(refused, Ok(Ok(()))), "{bad}");
+        assert!(scene.choose_level(&hat, bad).is_err(), "{bad}");
+    }
 }

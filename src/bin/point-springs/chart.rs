@@ -54,6 +54,8 @@ pub struct Chart {
     pub series: Vec<Series>,
     /// Points drawn as large rings over the lines (a Pareto front, say), with their name.
     pub marked: Option<(String, Vec<(f64, f64)>)>,
+    /// Whether the legend goes in the upper right corner (else the lower right).
+    pub legend_upper: bool,
 }
 
 impl Chart {
@@ -173,7 +175,11 @@ impl Chart {
             .label_font((FAMILY, 14))
             .background_style(WHITE.mix(0.85))
             .border_style(RGBColor(180, 180, 180))
-            .position(SeriesLabelPosition::LowerRight)
+            .position(if self.legend_upper {
+                SeriesLabelPosition::UpperRight
+            } else {
+                SeriesLabelPosition::LowerRight
+            })
             .draw()
             .map_err(|x| e(&x))?;
         root.present().map_err(|x| e(&x))

@@ -28,6 +28,10 @@
 //! assert_eq!(scene.simplify.k, 12); // the default
 //! ```
 //!
+//! Instead of a target, a scene may ask for its level by error: `error_budget: Some(0.01)`
+//! chooses the coarsest level predicted to keep the deformed surface within 1 % of the
+//! bounding box's diagonal (RMS) of the full resolution's ([`Scene::choose_level`]).
+//!
 //! [`Scene::prepare`] loads the cloud and prepares it with the one pipeline
 //! ([`prepare_surface`]: normals, §3 simplification, §4 network, §5 transfer coefficients),
 //! pins the pinned points and sets up the [`Timeline`] of pulls, giving a [`SceneRun`];
@@ -47,9 +51,11 @@
 //! write_ply(&out, &deformed.cloud, PlyEncoding::BinaryLittleEndian).unwrap();
 //! ```
 
+mod budget;
 mod run;
 mod timeline;
 
+pub use budget::{BUDGET_LADDER, LevelChoice, LevelEstimate};
 pub use run::{Deformed, SceneRun};
 pub use timeline::Timeline;
 
@@ -187,6 +193,12 @@ pub struct Scene {
     /// Pulls and pokes.
     #[serde(default)]
     pub pulls: Vec<Pull>,
+    /// The largest RMS error of the deformed surface, over the bounding box's diagonal, that
+    /// the simplification may cost: when given, the level is chosen by
+    /// [`Scene::choose_level`] when the scene is prepared (the scene runs at a few coarse
+    /// levels first), and `simplify`'s target and diameter are not used.
+    #[serde(default)]
+    pub error_budget: Option<f32>,
 }
 
 /// Why a scene could not be loaded, prepared or run.
@@ -324,9 +336,15 @@ impl Scene {
                 self.steps
             )));
         }
-        if self.simplify.target.is_none() && self.simplify.max_diameter.is_none() {
+        if let Some(budget) = self.error_budget {
+            if !budget::valid_budget(budget) {
+                return Err(invalid(format!(
+                    "error_budget must be in (0, 1), got {budget}"
+                )));
+            }
+        } else if self.simplify.target.is_none() && self.simplify.max_diameter.is_none() {
             return Err(invalid(
-                "simplify needs a target or a max_diameter (or both)",
+                "simplify needs a target or a max_diameter (or both), or the scene an error_budget",
             ));
         }
         if let Err(PrepareError::Invalid(message)) = self.surface_config().validate() {
@@ -365,20 +383,32 @@ impl Scene {
     /// Loads the cloud (relative to `base`) and prepares the scene ([`Self::prepare_cloud`]).
     pub fn prepare(&self, base: &Path) -> Result<SceneRun, SceneError> {
         self.validate()?;
-        let cloud = read_cloud(&base.join(&self.cloud), None)?;
+        self.prepare_run(read_cloud(&base.join(&self.cloud), None)?)
+    }
+
+    /// Prepares the scene on a cloud already loaded ([`Self::prepare_cloud`], without progress)
+    /// as a run: generated clouds and clouds read elsewhere run like a scene's own file.
+    pub fn prepare_run(&self, cloud: PointCloud) -> Result<SceneRun, SceneError> {
+        self.validate()?;
+        let (scene, _) = self.resolve_budget(&cloud)?;
         let rest = cloud.clone();
-        let (surface, timeline) = self.prepare_cloud(cloud, &mut |_| ControlFlow::Continue(()))?;
-        Ok(SceneRun::new(self.clone(), rest, surface, timeline))
+        let (surface, timeline) = scene.prepare_cloud(cloud, &mut |_| ControlFlow::Continue(()))?;
+        Ok(SceneRun::new(scene, rest, surface, timeline))
     }
 
     /// Prepares the scene on a cloud already loaded: the surface ([`prepare_surface`],
-    /// reporting to `progress`), its pins, and the timeline of its pulls.
+    /// reporting to `progress`), its pins, and the timeline of its pulls. A scene with an
+    /// error budget chooses its level first ([`Self::resolve_budget`]).
     pub fn prepare_cloud(
         &self,
         cloud: PointCloud,
         progress: &mut dyn FnMut(Progress) -> ControlFlow<()>,
     ) -> Result<(PreparedSurface, Timeline), SceneError> {
         self.validate()?;
+        if self.error_budget.is_some() {
+            let (scene, _) = self.resolve_budget(&cloud)?;
+            return scene.prepare_cloud(cloud, progress);
+        }
         let mut surface = prepare_surface(cloud, &self.surface_config(), progress)?;
         let solver = &mut surface.solver;
         pin_regions(

@@ -237,6 +237,7 @@ pub fn run(args: &Args) -> Result<(), Failure> {
         log_y: false,
         series,
         marked: None,
+        legend_upper: false,
     };
     let [svg, png] = chart.write(&args.chart)?;
     let report = ConvergenceReport {

@@ -8,6 +8,7 @@ mod network;
 #[cfg(feature = "plugin")]
 mod plugin;
 mod poke;
+mod report;
 mod scale;
 mod table1;
 mod transfer;
@@ -59,6 +60,12 @@ enum Case {
     /// How preparation (by stage), a step, the transfer and memory grow with the dense and
     /// simulation point counts (the generated sphere of Fig. 5, pressed for a few steps).
     Scale(scale::Args),
+    /// Speed against error: four scenes (the sphere poked and held, the hat and a sheet
+    /// sagging, the kitten scan pulled) at several levels with each integrator and step,
+    /// timed per step and per 60 Hz frame, their dense surfaces compared with a
+    /// full-resolution reference; writes report.md, report.csv, a chart per scene with its
+    /// Pareto front, and summary.json (with the paper's Table 1).
+    Report(report::Args),
 }
 
 /// Runs `bench`.
@@ -72,5 +79,6 @@ pub fn run(args: Args) -> Result<(), Failure> {
         Case::Table1(args) => table1::run(&args),
         Case::Scale(args) => scale::run(&args),
         Case::Convergence(args) => convergence::run(&args),
+        Case::Report(args) => report::run(&args),
     }
 }

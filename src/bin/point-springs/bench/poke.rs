@@ -51,6 +51,7 @@ pub fn poked_sphere(dense: usize, sim: usize, steps: usize) -> (Scene, PointClou
             start: 0,
             end: None,
         }],
+        error_budget: None,
     };
     (scene, fibonacci_sphere(dense, 1.0))
 }

@@ -41,31 +41,31 @@ pub struct Args {
 
 /// One row: a size of the table with one integrator.
 #[derive(Debug, Serialize)]
-struct Row {
+pub(super) struct Row {
     /// Simulation points asked for (the paper's).
-    paper_sim_points: usize,
+    pub(super) paper_sim_points: usize,
     /// Simulation points the network has.
-    sim_points: usize,
+    pub(super) sim_points: usize,
     /// Dense points.
-    dense_points: usize,
+    pub(super) dense_points: usize,
     /// Springs.
-    springs: usize,
+    pub(super) springs: usize,
     /// The integrator.
-    integrator: String,
+    pub(super) integrator: String,
     /// Sub-steps per step (the largest over the run).
-    substeps: u32,
+    pub(super) substeps: u32,
     /// Milliseconds per step: simulation and transfer.
-    ms_per_step: f64,
+    pub(super) ms_per_step: f64,
     /// Of which the simulation (forces, step, the scene's pull).
-    ms_simulate: f64,
+    pub(super) ms_simulate: f64,
     /// Of which the transfer of positions and normals to every dense point.
-    ms_transfer: f64,
+    pub(super) ms_transfer: f64,
     /// Steps whose points moved, so that the transfer ran (all of them, normally).
-    transfers: usize,
+    pub(super) transfers: usize,
     /// The paper's seconds per step for this size.
-    paper_s: f64,
+    pub(super) paper_s: f64,
     /// The paper's time over ours.
-    speedup: f64,
+    pub(super) speedup: f64,
 }
 
 /// What `bench table1` reports.
@@ -129,6 +129,24 @@ pub fn run(args: &Args) -> Result<(), Failure> {
             "{e} (give the scene, or run from the repository root)"
         ))
     })?;
+    let rows = measure_sizes(&scene, &base, args.steps)?;
+    let report = Table1Report {
+        benchmark: "table1",
+        scene: args.scene.display().to_string(),
+        steps: args.steps,
+        dt: scene.dt,
+        rows,
+    };
+    args.json.emit(&report)
+}
+
+/// Every row of the table: each of the paper's sizes with each integrator, `steps` steps
+/// of `scene` timed (at least `steps` in the scene).
+pub(super) fn measure_sizes(
+    scene: &Scene,
+    base: &std::path::Path,
+    steps: usize,
+) -> Result<Vec<Row>, Failure> {
     let mut rows = Vec::new();
     for (paper_sim_points, paper_s) in PAPER_TABLE1 {
         for integrator in [
@@ -140,24 +158,11 @@ pub fn run(args: &Args) -> Result<(), Failure> {
             scene.simplify.target = Some(paper_sim_points);
             scene.simplify.max_diameter = None;
             scene.solver.integrator = integrator;
-            scene.steps = scene.steps.max(args.steps);
-            rows.push(measure(
-                &scene,
-                &base,
-                args.steps,
-                paper_sim_points,
-                paper_s,
-            )?);
+            scene.steps = scene.steps.max(steps);
+            rows.push(measure(&scene, base, steps, paper_sim_points, paper_s)?);
         }
     }
-    let report = Table1Report {
-        benchmark: "table1",
-        scene: args.scene.display().to_string(),
-        steps: args.steps,
-        dt: scene.dt,
-        rows,
-    };
-    args.json.emit(&report)
+    Ok(rows)
 }
 
 /// One row: the scene prepared at one size, `steps` steps timed.

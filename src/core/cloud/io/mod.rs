@@ -333,7 +333,7 @@ pub fn write_ply(path: &Path, cloud: &PointCloud, encoding: PlyEncoding) -> Resu
 /// Writes a file through `write` into a temporary file in `path`'s directory, flushed to
 /// disk, then renamed to `path`; on any failure the temporary file is removed and `path` is
 /// untouched.
-pub(crate) fn write_atomically(
+pub fn write_atomically(
     path: &Path,
     write: impl FnOnce(&mut dyn Write) -> std::io::Result<()>,
 ) -> Result<(), SaveError> {
