@@ -187,7 +187,7 @@ impl Scene {
     }
 
     /// Runs this scene (without its budget) at `target` simulation points to its last step:
-    /// the simulation points it got and the dense positions at the end.
+    /// the simulation points it got and the positions of the original dense points at the end.
     fn run_level(
         &self,
         cloud: &PointCloud,
@@ -201,7 +201,9 @@ impl Scene {
         run.run(&mut |_| {})?;
         let s = &mut run.surface;
         s.dense.follow(&s.solver.points)?;
-        Ok((s.solver.len(), s.dense.positions().to_vec()))
+        // The original dense points only: points a resampling inserted differ by level.
+        let original = &s.dense.positions()[..cloud.len().min(s.dense.len())];
+        Ok((s.solver.len(), original.to_vec()))
     }
 }
 
@@ -210,8 +212,7 @@ fn level_target(n: usize, fraction: f32) -> usize {
     ((n as f32 * fraction).round() as usize).clamp(MIN_LEVEL_POINTS.min(n), n)
 }
 
-/// RMS distance between two surfaces over their common points (their original dense
-/// points; points a resampling inserted are left out).
+/// RMS distance between two surfaces over their common points.
 fn rms_distance(a: &[Vec3], b: &[Vec3]) -> f32 {
     let n = a.len().min(b.len());
     if n == 0 {
