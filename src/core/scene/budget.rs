@@ -97,23 +97,22 @@ impl Scene {
             .map(|b| b.diagonal())
             .filter(|d| *d > 0.0)
             .ok_or_else(|| invalid("an error budget needs a cloud with extent"))?;
-        let mut surfaces: Vec<(f32, usize, Vec<Vec3>)> = Vec::new();
+        // The last level run: its fraction, simulation points and dense surface.
+        let mut coarse: Option<(f32, usize, Vec<Vec3>)> = None;
         let mut levels: Vec<LevelEstimate> = Vec::new();
         let mut shrink = SHRINK_RANGE.0;
         for fraction in BUDGET_LADDER {
             let target = level_target(cloud.len(), fraction);
-            if surfaces.last().is_some_and(|s| s.1 >= target) {
+            if coarse.as_ref().is_some_and(|c| c.1 >= target) {
                 continue;
             }
             let (sim_points, positions) = self.run_level(cloud, target)?;
-            surfaces.push((fraction, sim_points, positions));
-            if surfaces.len() < 2 {
+            let Some((coarse_fraction, coarse_points, coarse_positions)) = coarse.take() else {
+                coarse = Some((fraction, sim_points, positions));
                 continue;
-            }
-            let [.., coarse, fine] = &surfaces[..] else {
-                unreachable!("two levels");
             };
-            let difference = rms_distance(&coarse.2, &fine.2) / diagonal;
+            let difference = rms_distance(&coarse_positions, &positions) / diagonal;
+            coarse = Some((fraction, sim_points, positions));
             if let Some(previous) = levels.last().and_then(|l| l.difference)
                 && difference > 0.0
             {
@@ -121,24 +120,23 @@ impl Scene {
             }
             let predicted = difference * shrink / (shrink - 1.0);
             levels.push(LevelEstimate {
-                fraction: coarse.0,
-                sim_points: coarse.1,
+                fraction: coarse_fraction,
+                sim_points: coarse_points,
                 difference: Some(difference),
                 predicted,
             });
             let finer = LevelEstimate {
-                fraction: fine.0,
-                sim_points: fine.1,
+                fraction,
+                sim_points,
                 difference: None,
                 predicted: predicted / shrink,
             };
-            let choice = if predicted <= budget {
-                Some((coarse.0, predicted))
-            } else {
-                (finer.predicted <= budget).then_some((fine.0, finer.predicted))
-            };
-            levels.push(finer);
-            if let Some((fraction, predicted)) = choice {
+            let chosen = [&levels[levels.len() - 1], &finer]
+                .into_iter()
+                .find(|l| l.predicted <= budget)
+                .map(|l| (l.fraction, l.predicted));
+            if let Some((fraction, predicted)) = chosen {
+                levels.push(finer);
                 return Ok(LevelChoice {
                     budget,
                     fraction,
@@ -148,13 +146,11 @@ impl Scene {
                     levels,
                 });
             }
-            // The finer level gets its own difference on the next rung.
-            levels.pop();
         }
-        if let Some(last) = surfaces.last() {
+        if let Some((fraction, sim_points, _)) = coarse {
             levels.push(LevelEstimate {
-                fraction: last.0,
-                sim_points: last.1,
+                fraction,
+                sim_points,
                 difference: None,
                 predicted: levels.last().map_or(0.0, |l| l.predicted / shrink),
             });
@@ -207,8 +203,9 @@ impl Scene {
     }
 }
 
-/// The simulation points a level of `n` dense points asks for.
-fn level_target(n: usize, fraction: f32) -> usize {
+/// The simulation points a level at `fraction` of `n` dense points asks for: the nearest
+/// count, at least 20 (or every point of a smaller cloud).
+pub fn level_target(n: usize, fraction: f32) -> usize {
     ((n as f32 * fraction).round() as usize).clamp(MIN_LEVEL_POINTS.min(n), n)
 }
 

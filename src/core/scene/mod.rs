@@ -55,7 +55,7 @@ mod budget;
 mod run;
 mod timeline;
 
-pub use budget::{BUDGET_LADDER, LevelChoice, LevelEstimate};
+pub use budget::{BUDGET_LADDER, LevelChoice, LevelEstimate, level_target};
 pub use run::{Deformed, SceneRun};
 pub use timeline::Timeline;
 

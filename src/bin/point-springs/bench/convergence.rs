@@ -13,6 +13,7 @@ use std::path::PathBuf;
 use bevy_point_springs::core::PointCloud;
 use bevy_point_springs::core::cloud::shapes::{fibonacci_sphere, hat, square_sheet};
 use bevy_point_springs::core::pipeline::{PreparedSurface, SurfaceConfig, prepare_surface};
+use bevy_point_springs::core::scene::level_target;
 use bevy_point_springs::core::simplify::SimplifyConfig;
 use bevy_point_springs::core::solver::{Integrator, MaterialUnits, SolverConfig, SpringMaterial};
 use glam::Vec3;
@@ -266,7 +267,7 @@ fn settle(
     fraction: f32,
     steps: usize,
 ) -> Result<Row, Failure> {
-    let target = ((cloud.len() as f32 * fraction).round() as usize).clamp(20, cloud.len());
+    let target = level_target(cloud.len(), fraction);
     let gravity = match problem {
         Problem::Sheet | Problem::Hat => problem.load() * GRAVITY,
         Problem::Ball | Problem::Shell => Vec3::ZERO,

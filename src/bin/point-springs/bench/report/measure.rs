@@ -47,6 +47,8 @@ pub struct Outcome {
     pub failure: Option<String>,
     /// The largest speed at the end, over the diagonal (per second): small when settled.
     pub residual_speed: f32,
+    /// The largest displacement of a dense point at the end, over the diagonal.
+    pub max_displacement: f32,
     /// The dense surface at the end (none when unstable).
     pub surface: Option<Surface>,
 }
@@ -115,6 +117,7 @@ pub fn run_scene(scene: &Scene, cloud: &PointCloud, diagonal: f32) -> Result<Out
         stable,
         failure,
         residual_speed: solver.points.max_speed() / diagonal,
+        max_displacement: dense.max_displacement() / diagonal,
         surface: stable.then(|| Surface {
             positions: dense.positions().to_vec(),
             normals: dense.normals().to_vec(),
@@ -125,17 +128,10 @@ pub fn run_scene(scene: &Scene, cloud: &PointCloud, diagonal: f32) -> Result<Out
 /// Why the dense surface is not sensible: a coordinate not finite, or a point moved
 /// further than the bounding box's diagonal (nothing in these scenes moves that far).
 fn thrown(dense: &DenseCloud, diagonal: f32) -> Option<String> {
-    let rest = dense.transfer().rest_positions();
-    let far = dense
-        .positions()
-        .iter()
-        .zip(rest)
-        .map(|(p, r)| p.distance(*r))
-        .fold(
-            0.0f32,
-            |m, d| if d.is_nan() { f32::INFINITY } else { m.max(d) },
-        );
-    // `far` is infinite for a NaN coordinate, so this also catches those.
+    if !dense.positions().iter().all(|p| p.is_finite()) {
+        return Some("a dense point is not finite".to_owned());
+    }
+    let far = dense.max_displacement();
     (far > diagonal).then(|| format!("a dense point moved {far:.3e}, past the diagonal"))
 }
 

@@ -133,8 +133,6 @@ pub struct Reference {
     pub dense_points: usize,
     /// The bounding box's diagonal of the dense cloud.
     pub diagonal: f32,
-    /// The largest displacement of a dense point at the end, over the diagonal.
-    pub max_displacement: f64,
     /// What the run measured.
     pub outcome: Outcome,
 }
@@ -201,13 +199,6 @@ pub fn run(args: &Args) -> Result<(), Failure> {
                 outcome.failure.as_deref().unwrap_or("?")
             )));
         };
-        let max_displacement = reference
-            .positions
-            .iter()
-            .zip(cloud.positions())
-            .map(|(p, r)| f64::from(p.distance(*r)))
-            .fold(0.0, f64::max)
-            / f64::from(diagonal);
         for &fraction in &plan.fractions {
             for &dt in &plan.dts {
                 for integrator in Integrator::ALL {
@@ -246,7 +237,6 @@ pub fn run(args: &Args) -> Result<(), Failure> {
             scene,
             dense_points: cloud.len(),
             diagonal,
-            max_displacement,
             outcome,
         });
     }

@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 use bevy_point_springs::core::PointCloud;
 use bevy_point_springs::core::cloud::io::read_cloud;
 use bevy_point_springs::core::cloud::shapes::{fibonacci_sphere, hat, square_sheet};
-use bevy_point_springs::core::scene::{Pull, Region, Scene};
+use bevy_point_springs::core::scene::{Pull, Region, Scene, level_target};
 use bevy_point_springs::core::simplify::SimplifyConfig;
 use bevy_point_springs::core::solver::{Integrator, MaterialUnits, SolverConfig, SpringMaterial};
 use glam::Vec3;
@@ -102,7 +102,7 @@ impl ReportScene {
         dt: f32,
         seconds: f32,
     ) -> Scene {
-        let target = ((cloud.len() as f32 * fraction).round() as usize).clamp(20, cloud.len());
+        let target = level_target(cloud.len(), fraction);
         let ramp = ((RAMP_S / dt).round() as usize).max(1);
         let (material, gravity, pressure, pins, pulls) = match self {
             Self::Sphere => (
