@@ -87,16 +87,17 @@ pub fn run(args: &Args) -> Result<(), Failure> {
     args.ply.write(&args.output, &cloud)?;
     let estimated = match source {
         NormalSource::File | NormalSource::Faces => None,
-        NormalSource::Estimated(r) => Some(r),
+        NormalSource::Estimated(r) | NormalSource::FileReoriented(r) => Some(r),
     };
     let report = NormalsReport {
         input: args.input.file.display().to_string(),
         output: args.output.display().to_string(),
         points: cloud.len(),
-        normals: if estimated.is_some() {
-            "estimated"
-        } else {
-            "file"
+        normals: match source {
+            NormalSource::File => "file",
+            NormalSource::FileReoriented(_) => "file, re-oriented",
+            NormalSource::Faces => "faces",
+            NormalSource::Estimated(_) => "estimated",
         },
         components: estimated.map(|r| r.components),
         flipped: estimated.map(|r| r.flipped),

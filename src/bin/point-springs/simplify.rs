@@ -342,6 +342,7 @@ fn report(
         input_points: cloud.len(),
         normals: match source {
             NormalSource::File => "file",
+            NormalSource::FileReoriented(_) => "file, re-oriented",
             NormalSource::Faces => "faces",
             NormalSource::Estimated(_) => "estimated",
         },

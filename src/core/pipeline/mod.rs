@@ -39,6 +39,7 @@ pub use dense::{DenseCloud, ExportError, FrameParts};
 
 use std::ops::ControlFlow;
 
+use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
 use crate::core::PointCloud;
@@ -211,9 +212,60 @@ pub enum PrepareError {
     /// The transfer could not be built.
     #[error(transparent)]
     Transfer(#[from] TransferError),
+    /// The cloud lies so far from the origin, for its size, that `f32` coordinates cannot
+    /// resolve its detail (a georeferenced scan, say): see [`check_precision`].
+    #[error(
+        "the cloud's coordinates reach {magnitude:.4e}, where f32 resolves only {resolution:.2e}, \
+         more than 1/{} of its point spacing (about {spacing:.2e}); translate it towards the \
+         origin",
+        1.0 / PRECISION_FRACTION
+    )]
+    Precision {
+        /// The largest absolute coordinate.
+        magnitude: f32,
+        /// The step between neighbouring `f32` values there.
+        resolution: f32,
+        /// The spacing estimate: the bounding box's diagonal over √n.
+        spacing: f32,
+    },
     /// The progress callback asked to stop.
     #[error("preparation was cancelled")]
     Cancelled,
+}
+
+/// The largest step between neighbouring coordinates, as a fraction of the point spacing,
+/// that [`check_precision`] accepts: 1/32 keeps the rounding of every position and of every
+/// displacement below 3 % of the spacing.
+pub const PRECISION_FRACTION: f32 = 1.0 / 32.0;
+
+/// Refuses a cloud whose coordinates are too large for its size to be resolved in `f32`:
+/// where the step between neighbouring `f32` values at its largest coordinate exceeds
+/// [`PRECISION_FRACTION`] of its point spacing (estimated as its bounding box's diagonal
+/// over √n, exact within a factor of two on surfaces). A unit sphere of 800 points is
+/// refused from about 3·10^4 away from the origin; one of radius 10^6 centred on it is
+/// accepted.
+pub fn check_precision(positions: &[Vec3]) -> Result<(), PrepareError> {
+    let Some(first) = positions.first() else {
+        return Ok(());
+    };
+    let (mut lo, mut hi) = (*first, *first);
+    for p in positions {
+        lo = lo.min(*p);
+        hi = hi.max(*p);
+    }
+    let magnitude = lo.abs().max(hi.abs()).max_element();
+    let spacing = (hi - lo).length() / (positions.len() as f32).sqrt();
+    // The gap to the next f32 above the largest coordinate (finite: PointCloud checks).
+    let resolution = f32::from_bits(magnitude.to_bits().saturating_add(1)) - magnitude;
+    // A cloud of one point, or of identical ones, has no spacing: later stages name that.
+    if spacing > 0.0 && resolution > PRECISION_FRACTION * spacing {
+        return Err(PrepareError::Precision {
+            magnitude,
+            resolution,
+            spacing,
+        });
+    }
+    Ok(())
 }
 
 /// A surface ready to simulate: its network at rest, the solver over it and the dense
@@ -241,6 +293,7 @@ pub fn prepare_surface(
     progress: &mut dyn FnMut(Progress) -> ControlFlow<()>,
 ) -> Result<PreparedSurface, PrepareError> {
     config.validate()?;
+    check_precision(cloud.positions())?;
     let mut report = |stage: Stage, within: f32| {
         let (start, end) = (stage_start(stage), next_start(stage));
         let fraction = start + (end - start) * within.clamp(0.0, 1.0);

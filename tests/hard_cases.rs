@@ -1,0 +1,537 @@
+//! The hard-case suite: degenerate, noisy, badly scaled and badly configured input through the
+//! whole pipeline (normals, §3, §4, §5, the solver, the scene's timeline). Every case ends in
+//! a typed error or in a finite result whose sense an assertion checks; what "sensible" means
+//! is written beside each case. The README's "Hard cases" table lists the outcomes.
+
+use bevy_point_springs::core::PointCloud;
+use bevy_point_springs::core::cloud::io::read_cloud;
+use bevy_point_springs::core::cloud::shapes::{fibonacci_sphere, square_sheet, with_noise};
+use bevy_point_springs::core::pipeline::PrepareError;
+use bevy_point_springs::core::scene::{Pull, Region, Scene, SceneError};
+use bevy_point_springs::core::simplify::SimplifyConfig;
+use bevy_point_springs::core::solver::{Integrator, MaterialUnits, SolverConfig, SpringMaterial};
+use glam::Vec3;
+use rand::{RngExt, SeedableRng};
+
+/// A frame, s.
+const DT: f32 = 1.0 / 60.0;
+
+/// A scene of `steps` implicit Euler steps at 60 Hz on a cloud given in code, a sheet's
+/// material (modulus 70 N/m, damping ratios 0.3), drag 2/s, simplified to `target` points.
+fn scene(target: Option<usize>, steps: usize) -> Scene {
+    Scene {
+        cloud: "<code>".into(),
+        normals: Default::default(),
+        simplify: SimplifyConfig {
+            target,
+            ..SimplifyConfig::default()
+        },
+        material: SpringMaterial {
+            units: MaterialUnits::Sheet,
+            stretch_stiffness: 70.0,
+            bend_stiffness: 70.0,
+            stretch_damping: 0.3,
+            bend_damping: 0.3,
+            ..SpringMaterial::default()
+        },
+        solver: SolverConfig {
+            integrator: Integrator::ImplicitEuler,
+            gravity: Vec3::ZERO,
+            drag: 2.0,
+            ..SolverConfig::default()
+        },
+        transfer: Default::default(),
+        resample: None,
+        pressure: None,
+        dt: DT,
+        steps,
+        pins: Vec::new(),
+        pulls: Vec::new(),
+        error_budget: None,
+    }
+}
+
+/// A pull of the simulation points within `radius` of `at` to `at + by` over the first half
+/// of `steps`, held for the rest.
+fn pull(at: Vec3, radius: f32, by: Vec3, steps: usize, stiffness: f32) -> Vec<Pull> {
+    let ramp = (steps / 2).max(1);
+    let first = Pull {
+        at,
+        radius: Some(radius),
+        to: at,
+        to_end: Some(at + by),
+        stiffness,
+        damping: 1.0,
+        start: 0,
+        end: Some(ramp),
+    };
+    vec![
+        first,
+        Pull {
+            to: at + by,
+            to_end: None,
+            start: ramp,
+            end: None,
+            ..first
+        },
+    ]
+}
+
+/// What a run that ended gave: the dense surface at rest and deformed.
+struct Outcome {
+    /// Simulation points.
+    sim_points: usize,
+    /// The dense positions at rest (the input's order; points a resampling inserts after).
+    rest: Vec<Vec3>,
+    /// The deformed dense positions.
+    positions: Vec<Vec3>,
+    /// The deformed dense normals.
+    normals: Vec<Vec3>,
+    /// The simulation points at rest and at the end.
+    sim: Vec<(Vec3, Vec3)>,
+}
+
+impl Outcome {
+    /// How far each dense point moved.
+    fn displacements(&self) -> impl Iterator<Item = f32> + '_ {
+        self.rest
+            .iter()
+            .zip(&self.positions)
+            .map(|(a, b)| a.distance(*b))
+    }
+
+    /// The largest displacement.
+    fn max_displacement(&self) -> f32 {
+        self.displacements().fold(0.0, f32::max)
+    }
+
+    /// Every position finite and every normal a finite unit vector.
+    fn assert_finite(&self) {
+        assert!(self.positions.iter().all(|p| p.is_finite()));
+        assert!(
+            self.normals
+                .iter()
+                .all(|n| n.is_finite() && (n.length() - 1.0).abs() < 1e-3)
+        );
+    }
+}
+
+/// Prepares `scene` on `cloud`, runs every step and transfers the result.
+fn run(scene: &Scene, cloud: PointCloud) -> Result<Outcome, SceneError> {
+    let rest = cloud.positions().to_vec();
+    let mut run = scene.prepare_run(cloud)?;
+    let sim_rest = run.solver().points.positions();
+    run.run(&mut |_| {})?;
+    let sim_points = run.solver().len();
+    let sim = sim_rest
+        .into_iter()
+        .zip(run.solver().points.positions())
+        .collect();
+    let deformed = run.deformed()?;
+    let outcome = Outcome {
+        sim_points,
+        rest,
+        positions: deformed.cloud.positions().to_vec(),
+        normals: deformed.cloud.normals().unwrap_or_default().to_vec(),
+        sim,
+    };
+    outcome.assert_finite();
+    Ok(outcome)
+}
+
+/// The error of a run that must fail, with its message printed (so a reader of the test log
+/// sees what a user would).
+fn expect_error(what: &str, result: Result<Outcome, SceneError>) -> SceneError {
+    match result {
+        Ok(o) => panic!(
+            "{what}: expected an error, got {} simulation points",
+            o.sim_points
+        ),
+        Err(e) => {
+            let message = e.to_string();
+            eprintln!("{what}: {message}");
+            assert!(!message.is_empty());
+            e
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------------------
+// Degenerate clouds: a clear error, never a panic.
+
+#[test]
+fn clouds_of_zero_to_three_points_are_errors() {
+    for n in 0..=3 {
+        let positions: Vec<Vec3> = (0..n)
+            .map(|i| Vec3::new(i as f32, (i * i) as f32 * 0.5, 0.0))
+            .collect();
+        let result = PointCloud::new(positions, None)
+            .map_err(|e| SceneError::Invalid(e.to_string()))
+            .and_then(|cloud| run(&scene(Some(2), 10), cloud));
+        expect_error(&format!("{n} points"), result);
+    }
+}
+
+#[test]
+fn identical_points_are_an_error() {
+    let same = PointCloud::new(vec![Vec3::ONE; 500], None).unwrap();
+    expect_error("identical", run(&scene(Some(100), 10), same));
+}
+
+#[test]
+fn collinear_points_are_an_error() {
+    let line = (0..500).map(|i| Vec3::X * i as f32 * 0.01).collect();
+    let line = PointCloud::new(line, None).unwrap();
+    expect_error("collinear", run(&scene(Some(100), 10), line));
+}
+
+#[test]
+fn a_nan_coordinate_is_an_error() {
+    let sphere = fibonacci_sphere(800, 1.0);
+    let mut positions = sphere.positions().to_vec();
+    positions[5].x = f32::NAN;
+    assert!(PointCloud::new(positions, None).is_err());
+    // The same from a file.
+    let path = std::env::temp_dir().join(format!("hard_case_nan_{}.xyz", std::process::id()));
+    std::fs::write(&path, "0 0 0\n1 0 0\nnan 1 0\n0 1 1\n").unwrap();
+    let read = read_cloud(&path, None);
+    std::fs::remove_file(&path).ok();
+    let error = read.expect_err("a NaN coordinate in a file");
+    eprintln!("NaN in a file: {error}");
+}
+
+#[test]
+fn pulls_that_start_after_the_last_step_are_an_error() {
+    let mut late = scene(Some(150), 30);
+    late.pulls = vec![Pull {
+        at: Vec3::Y,
+        radius: None,
+        to: Vec3::ZERO,
+        to_end: None,
+        stiffness: 10.0,
+        damping: 0.0,
+        start: 40,
+        end: None,
+    }];
+    let error = expect_error("late pull", run(&late, fibonacci_sphere(800, 1.0)));
+    assert!(matches!(error, SceneError::Invalid(_)), "{error:?}");
+}
+
+// ---------------------------------------------------------------------------------------
+// Shapes and samplings a scan gives.
+
+/// The unit sphere's bottom (below y = −0.8) pinned and its top (within 0.3 of the pole)
+/// pulled 0.2 down over `steps`.
+fn pinned_and_poked(target: usize, steps: usize) -> Scene {
+    let mut s = scene(Some(target), steps);
+    s.pins = vec![Region::Box {
+        min: Vec3::splat(-2.0),
+        max: Vec3::new(2.0, -0.8, 2.0),
+    }];
+    s.pulls = pull(Vec3::Y, 0.3, Vec3::NEG_Y * 0.2, steps, 300.0);
+    s
+}
+
+/// Sensible for [`pinned_and_poked`]:
+/// - the dense point at the pole moved down by 60 to 135 % of the pull (the grabbed
+///   simulation points move by the pull; on a coarse network the transfer's local fit
+///   carries a sharp dent up to a quarter further at the dense points between them);
+/// - the pinned simulation points did not move, and the dense points below y = −0.9 (which
+///   follow them and the free points just above them) by less than 10 % of the pull;
+/// - no point moved more than twice the pull.
+fn assert_poked(o: &Outcome, inliers: usize) {
+    let pole = (0..inliers)
+        .min_by(|&a, &b| {
+            o.rest[a]
+                .distance(Vec3::Y)
+                .total_cmp(&o.rest[b].distance(Vec3::Y))
+        })
+        .unwrap();
+    let down = o.rest[pole].y - o.positions[pole].y;
+    assert!((0.12..0.27).contains(&down), "the pole moved {down}");
+    assert_held(o, |p| p.y < -0.8, |p| p.y < -0.9, 0.02);
+    let max = o.max_displacement();
+    assert!(max < 0.4, "a point moved {max}");
+}
+
+/// The simulation points inside `pinned` did not move, and the dense points inside `deep`
+/// moved less than `slack`.
+fn assert_held(
+    o: &Outcome,
+    pinned: impl Fn(Vec3) -> bool,
+    deep: impl Fn(Vec3) -> bool,
+    slack: f32,
+) {
+    for (r, p) in &o.sim {
+        if pinned(*r) {
+            assert_eq!(r, p, "a pinned simulation point moved");
+        }
+    }
+    for (r, p) in o.rest.iter().zip(&o.positions) {
+        if deep(*r) {
+            let d = r.distance(*p);
+            assert!(d < slack, "a dense point at {r} by the pins moved {d}");
+        }
+    }
+}
+
+#[test]
+fn a_flat_sheet_sags_between_its_pinned_edges() {
+    let sheet = square_sheet(2.0, 0.08);
+    let mut s = scene(Some(200), 120);
+    s.solver.gravity = Vec3::NEG_Z * 9.81;
+    s.pins = vec![
+        Region::Box {
+            min: Vec3::new(-2.0, -2.0, -1.0),
+            max: Vec3::new(-0.95, 2.0, 1.0),
+        },
+        Region::Box {
+            min: Vec3::new(0.95, -2.0, -1.0),
+            max: Vec3::new(2.0, 2.0, 1.0),
+        },
+    ];
+    let o = run(&s, sheet).unwrap();
+    // Sensible: the middle sags (down, by less than the half-span); the held edges stay (the
+    // dense points there follow free simulation points too: within 10 % of the sag); every
+    // point moves down, and sideways by less than half the sag.
+    let middle = (0..o.rest.len())
+        .min_by(|&a, &b| o.rest[a].length().total_cmp(&o.rest[b].length()))
+        .unwrap();
+    let sag = o.rest[middle].z - o.positions[middle].z;
+    assert!(sag > 0.01 && sag < 1.0, "sag {sag}");
+    assert_held(&o, |p| p.x.abs() > 0.95, |p| p.x.abs() > 0.97, 0.1 * sag);
+    for (r, p) in o.rest.iter().zip(&o.positions) {
+        assert!(p.z <= r.z + 1e-3, "a point rose: {r} → {p}");
+        assert!((p.truncate() - r.truncate()).length() < 0.5 * sag);
+    }
+}
+
+#[test]
+fn a_noisy_scan_with_five_percent_outliers() {
+    let noisy = with_noise(&fibonacci_sphere(2000, 1.0), 0.01, 3);
+    let inliers = noisy.len();
+    let (mut positions, normals) = noisy.into_parts();
+    let mut normals = normals.unwrap();
+    let mut rng = rand::rngs::Xoshiro256PlusPlus::seed_from_u64(7);
+    for _ in 0..inliers / 20 {
+        let mut coordinate = || rng.random_range(-1.5f32..1.5);
+        positions.push(Vec3::new(coordinate(), coordinate(), coordinate()));
+        normals.push(Vec3::Y);
+    }
+    let s = pinned_and_poked(200, 60);
+    // With the scanner's normals (the outliers' wrong) and with normals estimated.
+    let with = PointCloud::new(positions.clone(), Some(normals)).unwrap();
+    assert_poked(&run(&s, with).unwrap(), inliers);
+    let without = PointCloud::new(positions, None).unwrap();
+    assert_poked(&run(&s, without).unwrap(), inliers);
+}
+
+#[test]
+fn a_density_ratio_of_1000_to_1() {
+    // A 2 × 2 sheet at spacing 0.1 with a 0.1 × 0.1 patch at spacing 0.1/32: 1024 times the
+    // density. Held at its left edge, its middle pulled 0.2 up.
+    let mut positions = square_sheet(2.0, 0.1).positions().to_vec();
+    let sparse = positions.len();
+    for i in 0..32 {
+        for j in 0..32 {
+            let (u, v) = (i as f32 / 32.0, j as f32 / 32.0);
+            positions.push(Vec3::new(0.01 + 0.1 * u, 0.01 + 0.1 * v, 0.0));
+        }
+    }
+    let mut s = scene(Some(300), 60);
+    s.pins = vec![Region::Box {
+        min: Vec3::new(-2.0, -2.0, -1.0),
+        max: Vec3::new(-0.95, 2.0, 1.0),
+    }];
+    s.pulls = pull(Vec3::ZERO, 0.3, Vec3::Z * 0.2, 60, 300.0);
+    let o = run(&s, PointCloud::new(positions, None).unwrap()).unwrap();
+    // Sensible: the patch (inside the pulled disc) rises with it, by 60 to 110 % of the
+    // pull, and nothing moves more than twice the pull.
+    for i in sparse..o.rest.len() {
+        let up = o.positions[i].z - o.rest[i].z;
+        assert!((0.12..0.22).contains(&up), "patch point {i} rose {up}");
+    }
+    assert!(o.max_displacement() < 0.4);
+}
+
+#[test]
+fn two_disconnected_pieces() {
+    let sphere = fibonacci_sphere(800, 1.0);
+    let mut positions = sphere.positions().to_vec();
+    let mut normals = sphere.normals().unwrap().to_vec();
+    positions.extend(sphere.positions().iter().map(|p| *p + Vec3::X * 4.0));
+    normals.extend_from_slice(sphere.normals().unwrap());
+    let o = run(
+        &pinned_and_poked(300, 60),
+        PointCloud::new(positions, Some(normals)).unwrap(),
+    )
+    .unwrap();
+    // Sensible: the first piece is poked as if alone; the second, pinned at its bottom too
+    // and pulled by nothing, stays where it was.
+    assert_poked(&o, 800);
+    let second = o.displacements().skip(800).fold(0.0, f32::max);
+    assert!(second < 1e-4, "the untouched piece moved {second}");
+}
+
+#[test]
+fn a_surface_with_a_hole() {
+    let sphere = fibonacci_sphere(800, 1.0);
+    let keep: Vec<usize> = (0..sphere.len())
+        .filter(|&i| sphere.positions()[i].x > -0.6)
+        .collect();
+    let positions = keep.iter().map(|&i| sphere.positions()[i]).collect();
+    let normals = keep.iter().map(|&i| sphere.normals().unwrap()[i]).collect();
+    let open = PointCloud::new(positions, Some(normals)).unwrap();
+    let n = open.len();
+    // Sensible: the open sphere is poked like a closed one.
+    assert_poked(&run(&pinned_and_poked(150, 60), open).unwrap(), n);
+}
+
+#[test]
+fn zero_inconsistent_and_nan_normals() {
+    let sphere = fibonacci_sphere(800, 1.0);
+    let given = sphere.normals().unwrap();
+    let s = pinned_and_poked(150, 30);
+    let outward = |o: &Outcome| {
+        let out = o
+            .normals
+            .iter()
+            .zip(&o.rest)
+            .filter(|(n, r)| n.dot(**r) > 0.0);
+        out.count() as f32 / o.normals.len() as f32
+    };
+    // Zero normals are no normals: estimated, and oriented outward.
+    let zero = PointCloud::new(sphere.positions().to_vec(), Some(vec![Vec3::ZERO; 800])).unwrap();
+    let o = run(&s, zero).unwrap();
+    assert!(outward(&o) > 0.99, "{}", outward(&o));
+    // Every other normal flipped: the transfer's normals come out consistent (all outward or
+    // all inward; the file's majority is a tie, so either is sensible).
+    let flipped = given
+        .iter()
+        .enumerate()
+        .map(|(i, n)| if i % 2 == 0 { -*n } else { *n })
+        .collect();
+    let o = run(
+        &s,
+        PointCloud::new(sphere.positions().to_vec(), Some(flipped)).unwrap(),
+    )
+    .unwrap();
+    let share = outward(&o);
+    assert!(!(0.01..=0.99).contains(&share), "{share} outward");
+    // A NaN normal is refused with its index.
+    let mut nan = given.to_vec();
+    nan[7] = Vec3::NAN;
+    let result = PointCloud::new(sphere.positions().to_vec(), Some(nan))
+        .map_err(|e| SceneError::Invalid(e.to_string()))
+        .and_then(|c| run(&s, c));
+    let message = expect_error("NaN normal", result).to_string();
+    assert!(message.contains("point 7"), "{message}");
+}
+
+#[test]
+fn coordinates_near_a_million_and_a_millionth() {
+    // The poked sphere at radius s, its density 1/s² (so its masses are the unit sphere's)
+    // and its pull scaled by s: every force scales by s, so the motion scales by s.
+    let unit = fibonacci_sphere(800, 1.0);
+    let scaled_run = |s: f32| {
+        let cloud = PointCloud::new(
+            unit.positions().iter().map(|p| *p * s).collect(),
+            unit.normals().map(<[Vec3]>::to_vec),
+        )
+        .unwrap();
+        let mut scene = pinned_and_poked(150, 60);
+        scene.material.density = 1.0 / (s * s);
+        scene.pins = vec![Region::Box {
+            min: Vec3::splat(-2.0 * s),
+            max: Vec3::new(2.0 * s, -0.8 * s, 2.0 * s),
+        }];
+        scene.pulls = pull(Vec3::Y * s, 0.3 * s, Vec3::NEG_Y * 0.2 * s, 60, 300.0);
+        run(&scene, cloud).unwrap()
+    };
+    let reference = scaled_run(1.0);
+    assert_poked(&reference, 800);
+    for s in [1.0e6f32, 1.0e-6] {
+        let o = scaled_run(s);
+        // Sensible: the same motion, scaled, within 10^-3 of the pull.
+        let worst = o
+            .positions
+            .iter()
+            .zip(&reference.positions)
+            .map(|(p, q)| (*p / s).distance(*q))
+            .fold(0.0, f32::max);
+        assert!(worst < 2e-4, "radius {s:e}: {worst} from the unit sphere's");
+    }
+    // A unit sphere a million away from the origin: f32 resolves 0.06 there, half its point
+    // spacing. Refused, with what to do.
+    let far = PointCloud::new(
+        unit.positions()
+            .iter()
+            .map(|p| *p + Vec3::splat(1.0e6))
+            .collect(),
+        unit.normals().map(<[Vec3]>::to_vec),
+    )
+    .unwrap();
+    let error = expect_error("far from the origin", run(&scene(Some(150), 10), far));
+    assert!(
+        matches!(error, SceneError::Prepare(PrepareError::Precision { .. })),
+        "{error:?}"
+    );
+}
+
+// ---------------------------------------------------------------------------------------
+// Hard settings.
+
+#[test]
+fn very_stiff_springs_at_a_large_step_with_each_integrator() {
+    for integrator in [
+        Integrator::ExplicitEuler,
+        Integrator::SymplecticEuler,
+        Integrator::ImplicitEuler,
+    ] {
+        let mut s = pinned_and_poked(150, 30);
+        s.material.stretch_stiffness = 1.0e6;
+        s.material.bend_stiffness = 1.0e6;
+        s.solver.integrator = integrator;
+        s.solver.gravity = Vec3::NEG_Y * 9.81;
+        s.dt = 0.1;
+        s.pulls = pull(Vec3::Y, 0.3, Vec3::NEG_Y * 0.2, 30, 300.0);
+        let o = run(&s, fibonacci_sphere(800, 1.0)).unwrap();
+        // Sensible: a sheet 10^4 times stiffer than the pull barely gives (under 1 % of the
+        // radius), and stays finite (the explicit schemes sub-step).
+        let max = o.max_displacement();
+        assert!(max < 0.01, "{integrator:?}: {max}");
+    }
+}
+
+#[test]
+fn a_poke_of_ten_thousand_times_the_weight() {
+    let sphere = fibonacci_sphere(800, 1.0);
+    let mut s = pinned_and_poked(150, 60);
+    // Stiff enough (10^4 N/m) to carry its own weight on its bottom cap.
+    s.material.stretch_stiffness = 1.0e4;
+    s.material.bend_stiffness = 1.0e4;
+    s.solver.gravity = Vec3::NEG_Y * 9.81;
+    // The anchors' pull when held, summed over the grabbed points: 10^4 × the weight.
+    let probe = s.prepare_run(sphere.clone()).unwrap();
+    let weight = probe.surface.network.report.total_mass * 9.81;
+    let grabbed = probe.timeline.pulled_points()[0] as f32;
+    let stiffness = 1.0e4 * weight / (0.2 * grabbed);
+    s.pulls = pull(Vec3::Y, 0.3, Vec3::NEG_Y * 0.2, 60, stiffness);
+    let o = run(&s, sphere).unwrap();
+    // Sensible: the pole goes where the poke takes it, the pins hold, nothing flies.
+    assert_poked(&o, 800);
+}
+
+#[test]
+fn a_pin_holding_every_point() {
+    let mut s = pinned_and_poked(150, 30);
+    s.solver.gravity = Vec3::NEG_Y * 9.81;
+    s.pins = vec![Region::Sphere {
+        centre: Vec3::ZERO,
+        radius: 10.0,
+    }];
+    let o = run(&s, fibonacci_sphere(800, 1.0)).unwrap();
+    // Sensible: gravity and the pull move nothing.
+    let max = o.max_displacement();
+    assert!(max < 1e-6, "{max}");
+}
