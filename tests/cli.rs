@@ -295,6 +295,74 @@ fn run_writes_the_deformed_surface_and_reports_it() {
 }
 
 #[test]
+fn run_resumes_from_a_snapshot_bit_for_bit() {
+    // The hat (300 steps, resampling) straight through, snapshots every 120 steps; then
+    // resumed from the last one (step 240), by the snapshot alone and with the scene named.
+    let scene = asset("scenes/hat.ron");
+    let straight = scratch("straight.ply");
+    let snapshot = scratch("hat.snapshot");
+    let v = run_json(&[
+        "run",
+        scene.to_str().unwrap(),
+        "-o",
+        straight.to_str().unwrap(),
+        "--snapshot-every",
+        "120",
+        "--snapshot",
+        snapshot.to_str().unwrap(),
+        "--json",
+    ]);
+    assert_eq!(v["snapshots_written"], 2);
+    let bytes = |p: &Path| std::fs::read(p).unwrap();
+    for with_scene in [false, true] {
+        let resumed = scratch(&format!("resumed_{with_scene}.ply"));
+        let mut args = vec!["run"];
+        if with_scene {
+            args.push(scene.to_str().unwrap());
+        }
+        args.extend([
+            "--resume",
+            snapshot.to_str().unwrap(),
+            "-o",
+            resumed.to_str().unwrap(),
+            "--json",
+        ]);
+        let v = run_json(&args);
+        assert_eq!(v["resumed_at_step"], 240);
+        assert_eq!(v["steps"], 300);
+        assert!(
+            bytes(&resumed) == bytes(&straight),
+            "resumed output differs"
+        );
+    }
+    // Another scene, a damaged snapshot, and no scene at all: exit 2, saying why.
+    let other = asset("scenes/sphere_poke.ron");
+    let damaged = scratch("damaged.snapshot");
+    std::fs::write(&damaged, &bytes(&snapshot)[..100]).unwrap();
+    for (args, needle) in [
+        (
+            vec![
+                "run",
+                other.to_str().unwrap(),
+                "--resume",
+                snapshot.to_str().unwrap(),
+            ],
+            "another scene",
+        ),
+        (
+            vec!["run", "--resume", damaged.to_str().unwrap()],
+            "damaged",
+        ),
+        (vec!["run"], "<SCENE>"),
+    ] {
+        let out = run(&args);
+        assert_eq!(out.status.code(), Some(2), "{args:?}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains(needle), "{args:?}: {err}");
+    }
+}
+
+#[test]
 fn run_rejects_bad_scenes_with_exit_2() {
     let broken = scratch("broken.ron");
     std::fs::write(&broken, "(cloud: \"x.ply\", steps: many)").unwrap();

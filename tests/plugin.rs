@@ -3,6 +3,7 @@
 
 use std::time::Duration;
 
+use bevy::ecs::schedule::SingleThreadedExecutor;
 use bevy::prelude::*;
 use bevy::time::TimeUpdateStrategy;
 use bevy_point_springs::core::cloud::shapes;
@@ -48,9 +49,20 @@ fn sets_run_in_order_on_the_fixed_tick() {
 /// Runs a shipped scene in the ECS until its last step; returns the dense surface and the
 /// scene.
 fn run_scene_in_ecs(name: &str) -> (DenseCloud, Scene, App, Entity) {
+    run_scene_in_ecs_with(name, false)
+}
+
+/// [`run_scene_in_ecs`], with the fixed schedule on the single-threaded executor when asked.
+fn run_scene_in_ecs_with(name: &str, single_threaded: bool) -> (DenseCloud, Scene, App, Entity) {
     let (scene, _) = Scene::load(&assets_dir().join("scenes").join(name)).unwrap();
     let tick = Duration::from_secs_f64(f64::from(scene.dt));
-    let mut app = create_app(&assets_dir(), tick);
+    let mut app = create_app_with(&assets_dir(), tick, |app| {
+        if single_threaded {
+            app.edit_schedule(FixedUpdate, |schedule| {
+                schedule.set_executor(SingleThreadedExecutor::new());
+            });
+        }
+    });
     let handle = app
         .world()
         .resource::<AssetServer>()
@@ -115,6 +127,17 @@ fn sphere_poke_runs_bit_for_bit_like_the_headless_run() {
 fn hat_runs_bit_for_bit_like_the_headless_run() {
     let crown = ecs_matches_the_headless_run("hat.ron");
     assert!(crown > 0.7, "crown {crown}");
+}
+
+/// Bevy's multi-threaded and single-threaded executors give the same bits (the systems of
+/// one surface are chained; surfaces run side by side but share nothing).
+#[test]
+fn both_executors_give_the_same_bits() {
+    let (multi, ..) = run_scene_in_ecs_with("hat.ron", false);
+    let (single, ..) = run_scene_in_ecs_with("hat.ron", true);
+    assert_eq!(multi.len(), single.len());
+    assert!(bits(multi.positions()) == bits(single.positions()));
+    assert!(bits(multi.normals()) == bits(single.normals()));
 }
 
 /// The same, against the PLY file the command-line tool writes.

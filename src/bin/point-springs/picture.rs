@@ -66,7 +66,18 @@ pub struct Drawn {
 
 /// Draws `clouds` (with normals) side by side to a PNG at `path`, all at one scale and
 /// centred on the box that holds them all (so a rest shape and its deformation compare).
+/// The file is written to a temporary file and renamed into place.
 pub fn render(clouds: &[&PointCloud], view: &View, path: &Path) -> Result<Drawn, String> {
+    let mut drawn = None;
+    crate::atomic::write_via_temp(path, |tmp| {
+        drawn = Some(draw(clouds, view, tmp)?);
+        Ok(())
+    })?;
+    drawn.ok_or_else(|| "nothing was drawn".to_owned())
+}
+
+/// [`render`]'s drawing, to `path` directly.
+fn draw(clouds: &[&PointCloud], view: &View, path: &Path) -> Result<Drawn, String> {
     if clouds.is_empty() {
         return Err("nothing to draw".into());
     }

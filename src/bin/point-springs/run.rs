@@ -5,7 +5,7 @@ use std::fmt;
 use std::path::PathBuf;
 use std::time::Instant;
 
-use bevy_point_springs::core::scene::{Deformed, Scene, SceneRun};
+use bevy_point_springs::core::scene::{Deformed, Scene, SceneRun, Snapshot};
 use glam::Vec3;
 use serde::Serialize;
 
@@ -17,8 +17,22 @@ use crate::report::Report;
 /// Arguments of `run`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// The scene (.ron); its cloud path is relative to it.
-    scene: PathBuf,
+    /// The scene (.ron); its cloud path is relative to it. Optional with --resume (the
+    /// snapshot names its scene file); when given there, it must be the snapshot's scene.
+    #[arg(required_unless_present = "resume")]
+    scene: Option<PathBuf>,
+    /// Every N steps, save a snapshot of the running surface to --snapshot (written to a
+    /// temporary file and renamed, so a crash never leaves a half-written one).
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
+    snapshot_every: Option<u64>,
+    /// Where --snapshot-every writes: by default SCENE's name with `.snapshot` in the
+    /// current folder, or the --resume file when resuming.
+    #[arg(long, value_name = "FILE")]
+    snapshot: Option<PathBuf>,
+    /// Go on from a snapshot (`--snapshot-every`): the scene is prepared again and the run
+    /// continues bit for bit from the step the snapshot was taken at.
+    #[arg(long, value_name = "FILE")]
+    resume: Option<PathBuf>,
     /// Write the deformed dense surface to this PLY file.
     #[arg(short, long)]
     output: Option<PathBuf>,
@@ -97,6 +111,12 @@ struct RunReport {
     finite: bool,
     /// Dense points resampling added.
     resampled_points: usize,
+    /// The step the run went on from, when resumed from a snapshot.
+    resumed_at_step: Option<usize>,
+    /// Snapshots written over the run.
+    snapshots_written: usize,
+    /// Where they went.
+    snapshot: Option<String>,
 }
 
 impl fmt::Display for RunReport {
@@ -126,6 +146,16 @@ impl fmt::Display for RunReport {
             "result        largest displacement {:.4}, energy {:.4e}, finite: {}",
             self.max_displacement, self.energy_final, self.finite
         )?;
+        if let Some(step) = self.resumed_at_step {
+            writeln!(f, "resumed       from step {step}")?;
+        }
+        if let Some(snapshot) = &self.snapshot {
+            writeln!(
+                f,
+                "snapshots     {} written to {snapshot}",
+                self.snapshots_written
+            )?;
+        }
         for out in self.output.iter().chain(&self.png) {
             writeln!(f, "written       {out}")?;
         }
@@ -155,11 +185,23 @@ pub fn run(args: &Args) -> Result<(), Failure> {
         .as_ref()
         .map(|_| View::checked(args.view, args.up, (PICTURE_WIDTH, PICTURE_HEIGHT)))
         .transpose()?;
-    let (scene, base) = Scene::load(&args.scene).map_err(Failure::bad_input)?;
     let start = Instant::now();
-    let mut scene_run = scene.prepare(&base).map_err(Failure::bad_input)?;
+    let (mut scene_run, scene_file) = prepare(args)?;
+    let scene = scene_run.scene.clone();
+    let resumed_at_step = args.resume.is_some().then(|| scene_run.step_count());
     let prepare = start.elapsed().as_secs_f64();
-    let (simulate, resample) = simulate(&mut scene_run, scene.steps)?;
+    let snapshots = args.snapshot_every.map(|every| Snapshots {
+        every,
+        path: args.snapshot.clone().unwrap_or_else(|| {
+            args.resume.clone().unwrap_or_else(|| {
+                let stem = scene_file.file_stem().unwrap_or_default();
+                PathBuf::from(stem).with_extension("snapshot")
+            })
+        }),
+        scene_file: scene_file.clone(),
+        written: 0,
+    });
+    let (simulate, resample, snapshots) = simulate(&mut scene_run, scene.steps, snapshots)?;
     let energy = scene_run.solver().energy().total();
     let start = Instant::now();
     let deformed = scene_run.deformed().map_err(Failure::other)?;
@@ -176,13 +218,81 @@ pub fn run(args: &Args) -> Result<(), Failure> {
         resample,
         transfer,
     };
-    let report = report(args, &scene, &scene_run, &deformed, energy, seconds);
+    let mut report = report(args, &scene, &scene_run, &deformed, energy, seconds);
+    report.scene = scene_file.display().to_string();
+    report.resumed_at_step = resumed_at_step;
+    let stepped = scene_run.step_count() - resumed_at_step.unwrap_or(0);
+    report.ms_per_step = simulate * 1e3 / stepped.max(1) as f64;
+    if let Some(s) = &snapshots {
+        report.snapshots_written = s.written;
+        report.snapshot = Some(s.path.display().to_string());
+    }
     args.json.emit(&report)
 }
 
-/// Steps `run` to its end, showing progress on a terminal; the seconds spent stepping and
-/// resampling.
-fn simulate(run: &mut SceneRun, total: usize) -> Result<(f64, f64), Failure> {
+/// The run, prepared from the scene or resumed from a snapshot, and the scene file (made
+/// absolute, so that a snapshot finds it from anywhere).
+fn prepare(args: &Args) -> Result<(SceneRun, PathBuf), Failure> {
+    let absolute = |p: &PathBuf| std::path::absolute(p).unwrap_or_else(|_| p.clone());
+    let Some(resume) = &args.resume else {
+        let file = args
+            .scene
+            .as_ref()
+            .expect("clap requires a scene without --resume");
+        let (scene, base) = Scene::load(file).map_err(Failure::bad_input)?;
+        let run = scene.prepare(&base).map_err(Failure::bad_input)?;
+        return Ok((run, absolute(file)));
+    };
+    let snapshot = Snapshot::read(resume).map_err(Failure::bad_input)?;
+    let file = match &args.scene {
+        Some(file) => absolute(file),
+        None => snapshot.scene_file.clone().ok_or_else(|| {
+            Failure::bad_input(format!(
+                "{}: the snapshot does not name its scene file; give the scene",
+                resume.display()
+            ))
+        })?,
+    };
+    let (scene, base) = Scene::load(&file).map_err(Failure::bad_input)?;
+    let cloud = bevy_point_springs::core::cloud::io::read_cloud(&base.join(&scene.cloud), None)
+        .map_err(Failure::bad_input)?;
+    // The snapshot holds the scene as it ran: a budget resolved to a level.
+    let mut as_run = scene.clone();
+    if as_run.error_budget.take().is_some() {
+        as_run.simplify.target = snapshot.scene.simplify.target;
+        as_run.simplify.max_diameter = None;
+    }
+    if as_run != snapshot.scene {
+        return Err(Failure::bad_input(format!(
+            "{}: the snapshot was taken of another scene than {}",
+            resume.display(),
+            file.display()
+        )));
+    }
+    let run = snapshot.resume(cloud).map_err(Failure::bad_input)?;
+    Ok((run, file))
+}
+
+/// Snapshots to write while simulating.
+#[derive(Debug)]
+struct Snapshots {
+    /// Steps between two.
+    every: u64,
+    /// The file each replaces.
+    path: PathBuf,
+    /// The scene file they name.
+    scene_file: PathBuf,
+    /// How many were written.
+    written: usize,
+}
+
+/// Steps `run` to its end, showing progress on a terminal and writing `snapshots` when
+/// due; the seconds spent stepping and resampling.
+fn simulate(
+    run: &mut SceneRun,
+    total: usize,
+    mut snapshots: Option<Snapshots>,
+) -> Result<(f64, f64, Option<Snapshots>), Failure> {
     use std::io::{IsTerminal, Write};
     let tty = std::io::stderr().is_terminal();
     let (mut simulate_seconds, mut resample_seconds) = (0.0, 0.0);
@@ -194,6 +304,15 @@ fn simulate(run: &mut SceneRun, total: usize) -> Result<(f64, f64), Failure> {
         simulate_seconds += (middle - start).as_secs_f64();
         resample_seconds += middle.elapsed().as_secs_f64();
         let step = run.step_count();
+        if let Some(s) = snapshots
+            .as_mut()
+            .filter(|s| (step as u64).is_multiple_of(s.every))
+        {
+            let mut snapshot = run.snapshot();
+            snapshot.scene_file = Some(s.scene_file.clone());
+            snapshot.write(&s.path).map_err(Failure::other)?;
+            s.written += 1;
+        }
         if tty && (step.is_multiple_of(10) || step == total) {
             let _ = write!(std::io::stderr(), "\rrun: step {step} of {total}   ");
             let _ = std::io::stderr().flush();
@@ -202,7 +321,7 @@ fn simulate(run: &mut SceneRun, total: usize) -> Result<(f64, f64), Failure> {
     if tty {
         eprintln!();
     }
-    Ok((simulate_seconds, resample_seconds))
+    Ok((simulate_seconds, resample_seconds, snapshots))
 }
 
 /// The report of `run`, from the finished run and its final `energy`.
@@ -225,7 +344,7 @@ fn report(
             .all(|v| v.is_finite());
     let r = &run.surface.network.report;
     RunReport {
-        scene: args.scene.display().to_string(),
+        scene: String::new(),
         output: args.output.as_ref().map(|p| p.display().to_string()),
         png: args.png.as_ref().map(|p| p.display().to_string()),
         dense_points: deformed.cloud.len(),
@@ -251,5 +370,8 @@ fn report(
         energy_final: energy,
         finite,
         resampled_points: run.resampled().inserted,
+        resumed_at_step: None,
+        snapshots_written: 0,
+        snapshot: None,
     }
 }

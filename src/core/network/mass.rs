@@ -171,32 +171,28 @@ impl SpringNetwork {
         }
         let n = self.len();
         let index = KnnIndex::build(&self.positions);
-        let received = dense_positions
+        // Which simulation point each dense point gives its area to, in parallel; the sums
+        // then run in the dense points' order, so the masses do not depend on how rayon
+        // splits the work (the same bits with any number of threads).
+        let receivers: Vec<Option<u32>> = dense_positions
             .par_chunks(CHUNK)
             .zip(dense_normals.par_chunks(CHUNK))
-            .zip(dense_areas.par_chunks(CHUNK))
-            .fold(
-                || vec![0.0f64; n],
-                |mut acc, ((ps, ns), areas)| {
-                    for ((&p, &normal), &a) in ps.iter().zip(ns).zip(areas) {
-                        let near = index.nearest(p, SHARE_CANDIDATES);
-                        let same_side = near
-                            .iter()
-                            .find(|nb| self.normals[nb.index as usize].dot(normal) > 0.0);
-                        if let Some(nb) = same_side.or(near.first()) {
-                            acc[nb.index as usize] += f64::from(a);
-                        }
-                    }
-                    acc
-                },
-            )
-            .reduce(
-                || vec![0.0f64; n],
-                |mut a, b| {
-                    a.iter_mut().zip(b).for_each(|(x, y)| *x += y);
-                    a
-                },
-            );
+            .flat_map_iter(|(ps, ns)| {
+                ps.iter().zip(ns).map(|(&p, &normal)| {
+                    let near = index.nearest(p, SHARE_CANDIDATES);
+                    let same_side = near
+                        .iter()
+                        .find(|nb| self.normals[nb.index as usize].dot(normal) > 0.0);
+                    same_side.or(near.first()).map(|nb| nb.index)
+                })
+            })
+            .collect();
+        let mut received = vec![0.0f64; n];
+        for (receiver, &a) in receivers.iter().zip(dense_areas) {
+            if let Some(j) = receiver {
+                received[*j as usize] += f64::from(a);
+            }
+        }
         let dense_area: f64 = dense_areas.iter().map(|&a| f64::from(a)).sum();
         if dense_area.is_nan() || dense_area <= 0.0 {
             return Err(NetworkError::NotASurface);

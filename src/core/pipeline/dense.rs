@@ -29,6 +29,29 @@ pub struct DenseCloud {
     maintained_at: u64,
 }
 
+/// Where a [`DenseCloud`] stands (for a snapshot): its deformed points, the points
+/// resampling inserted (their rest positions and normals, from which their transfer rows are
+/// fitted again), the resampler's spacings and its counters.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct DenseState {
+    /// Deformed positions (inserted points included).
+    pub positions: Vec<Vec3>,
+    /// Deformed unit normals (a PCA normal update orients by them).
+    pub normals: Vec<Vec3>,
+    /// Rest positions of the points resampling inserted, in order.
+    pub inserted_rest: Vec<Vec3>,
+    /// Their rest normals.
+    pub inserted_normals: Vec<Vec3>,
+    /// The resampler's rest spacing per dense point (empty without resampling).
+    pub spacing: Vec<f32>,
+    /// The resampler's sampled spacing per dense point (empty without resampling).
+    pub sampled: Vec<f32>,
+    /// The step count resampling last looked at.
+    pub maintained_at: u64,
+    /// The revision of the positions and normals.
+    pub revision: u64,
+}
+
 /// The pieces of a frame, for callers that split its rows over threads of their own
 /// (see [`DenseCloud::frame_parts`]).
 #[derive(Debug)]
@@ -84,6 +107,85 @@ impl DenseCloud {
     /// The deformed unit normals as of the last frame.
     pub fn normals(&self) -> &[Vec3] {
         &self.normals
+    }
+
+    /// Where it stands (see [`DenseState`]).
+    pub fn state(&self) -> DenseState {
+        let original = self.transfer.len() - self.inserted;
+        let (spacing, sampled) = self
+            .resampler
+            .as_ref()
+            .map(|r| {
+                let (s, t) = r.spacings();
+                (s.to_vec(), t.to_vec())
+            })
+            .unwrap_or_default();
+        DenseState {
+            positions: self.positions.clone(),
+            normals: self.normals.clone(),
+            inserted_rest: self.transfer.rest[original..].to_vec(),
+            inserted_normals: self.transfer.normals[original..].to_vec(),
+            spacing,
+            sampled,
+            maintained_at: self.maintained_at,
+            revision: self.revision,
+        }
+    }
+
+    /// Puts back what [`Self::state`] gave, on the dense cloud of the same surface as
+    /// prepared (before any point was inserted): the inserted points' rows are fitted again.
+    /// A state of another surface (other counts) or with bad values is refused, nothing
+    /// changed.
+    pub fn restore(&mut self, state: &DenseState) -> Result<(), TransferError> {
+        let original = self.transfer.len() - self.inserted;
+        let total = original + state.inserted_rest.len();
+        let counts_match = self.inserted == 0
+            && state.positions.len() == total
+            && state.normals.len() == total
+            && state.inserted_normals.len() == state.inserted_rest.len()
+            && match &self.resampler {
+                Some(_) => state.spacing.len() == total && state.sampled.len() == total,
+                None => state.spacing.is_empty() && state.inserted_rest.is_empty(),
+            };
+        if !counts_match {
+            return Err(TransferError::Snapshot(format!(
+                "{} points ({} inserted) for a surface of {} points",
+                state.positions.len(),
+                state.inserted_rest.len(),
+                original
+            )));
+        }
+        let finite = |v: &[Vec3]| v.iter().all(|p| p.is_finite());
+        let unit = |v: &[Vec3]| v.iter().all(|n| (n.length() - 1.0).abs() < 1e-3);
+        if !(finite(&state.positions)
+            && finite(&state.inserted_rest)
+            && unit(&state.normals)
+            && unit(&state.inserted_normals)
+            && state
+                .spacing
+                .iter()
+                .chain(&state.sampled)
+                .all(|s| s.is_finite() && *s >= 0.0))
+        {
+            return Err(TransferError::Snapshot(
+                "a non-finite value, or a normal not of unit length".to_owned(),
+            ));
+        }
+        if !state.inserted_rest.is_empty() {
+            let index = crate::core::cloud::knn::KnnIndex::build(&self.transfer.sim_rest);
+            self.transfer
+                .extend(&state.inserted_rest, &state.inserted_normals, &index);
+        }
+        if let Some(resampler) = self.resampler.as_mut() {
+            resampler.set_spacings(&state.spacing, &state.sampled);
+        }
+        self.positions.clone_from(&state.positions);
+        self.normals.clone_from(&state.normals);
+        self.inserted = state.inserted_rest.len();
+        self.maintained_at = state.maintained_at;
+        self.revision = state.revision;
+        self.fresh = false;
+        Ok(())
     }
 
     /// Changes each time the positions or normals do (for uploads).

@@ -35,7 +35,7 @@ mod bake;
 mod dense;
 
 pub use bake::{BakeParts, bake};
-pub use dense::{DenseCloud, ExportError, FrameParts};
+pub use dense::{DenseCloud, DenseState, ExportError, FrameParts};
 
 use std::ops::ControlFlow;
 

@@ -53,11 +53,13 @@
 
 mod budget;
 mod run;
+mod snapshot;
 mod timeline;
 
 pub use budget::{BUDGET_LADDER, LevelChoice, LevelEstimate, level_target};
 pub use run::{Deformed, SceneRun};
-pub use timeline::Timeline;
+pub use snapshot::{SNAPSHOT_MAGIC, Snapshot, SnapshotError};
+pub use timeline::{Timeline, TimelineState};
 
 use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};

@@ -17,7 +17,7 @@ pub struct SceneRun {
     /// Simulation points held by pins.
     pub pinned: usize,
     /// What resampling did over the run.
-    resampled: ResampleReport,
+    pub(super) resampled: ResampleReport,
 }
 
 /// The deformed dense surface.

@@ -5,6 +5,15 @@ use glam::Vec3;
 
 use super::*;
 
+/// Where a [`Timeline`] stands: its step and the anchors each pull holds.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TimelineState {
+    /// Steps taken.
+    pub step: usize,
+    /// Per pull, its anchors (none before it starts and after it lets go).
+    pub anchors: Vec<Vec<AnchorId>>,
+}
+
 /// A pull's state during a run.
 #[derive(Debug, Clone)]
 struct ActivePull {
@@ -123,6 +132,41 @@ impl Timeline {
             }
         }
         self.step += 1;
+        Ok(())
+    }
+
+    /// The step reached and the anchors each pull holds (for a snapshot).
+    pub fn state(&self) -> TimelineState {
+        TimelineState {
+            step: self.step,
+            anchors: self.pulls.iter().map(|p| p.anchors.clone()).collect(),
+        }
+    }
+
+    /// Puts back what [`Self::state`] gave, on the timeline of the same scene: refused
+    /// (nothing changed) when the pull count differs, when a pull holds anchors other than
+    /// one per grabbed point, or when the step is past the end.
+    pub fn restore(&mut self, state: &TimelineState) -> Result<(), SceneError> {
+        if state.anchors.len() != self.pulls.len() || state.step > self.steps {
+            return Err(invalid(format!(
+                "the snapshot's timeline ({} pulls, step {}) is not this scene's ({} pulls, {} steps)",
+                state.anchors.len(),
+                state.step,
+                self.pulls.len(),
+                self.steps
+            )));
+        }
+        for (p, held) in self.pulls.iter().zip(&state.anchors) {
+            if !held.is_empty() && held.len() != p.grabbed.len() {
+                return Err(invalid(
+                    "the snapshot's pull holds another number of points than the scene's",
+                ));
+            }
+        }
+        for (p, held) in self.pulls.iter_mut().zip(&state.anchors) {
+            p.anchors.clone_from(held);
+        }
+        self.step = state.step;
         Ok(())
     }
 

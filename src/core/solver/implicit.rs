@@ -132,6 +132,17 @@ impl Scratch {
         self.dv.iter_mut().for_each(|d| *d = DVec3::ZERO);
     }
 
+    /// The last Δv, the next solve's start.
+    pub fn warm_start(&self) -> &[DVec3] {
+        &self.dv
+    }
+
+    /// Replaces the warm start (a snapshot's).
+    pub fn set_warm_start(&mut self, dv: &[DVec3]) {
+        self.dv.clear();
+        self.dv.extend_from_slice(dv);
+    }
+
     fn resize(&mut self, n: usize, springs: usize) {
         for v in [
             &mut self.dv,

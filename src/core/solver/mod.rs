@@ -76,6 +76,7 @@ mod implicit;
 mod parts;
 mod report;
 mod springs;
+mod state;
 mod stepper;
 
 pub mod contact;
@@ -92,6 +93,7 @@ use parts::non_negative;
 pub use parts::{Anchors, ExternalForces, Masses, PointState, Pressure, Springs, hold_still};
 pub use report::{Diagnostics, Energy, SolverError, Stability, StepReport};
 pub use springs::{COINCIDENT_DISTANCE, SpringSpec};
+pub use state::SolverState;
 pub use stepper::{Model, Stepper};
 
 /// Largest magnitude a coordinate or velocity component may reach before the guard treats
@@ -120,7 +122,7 @@ pub const STANDARD_GRAVITY: Vec3 = Vec3::new(0.0, -9.81, 0.0);
 
 /// A spring from a point to a world position (eq 5): F = k·(target − x) − k_d·v. Pins, pokes
 /// and drags are anchors; move a drag with [`Solver::set_anchor_target`].
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Anchor {
     /// The point held.
     pub point: u32,
@@ -133,7 +135,7 @@ pub struct Anchor {
 }
 
 /// A handle to an anchor, valid until the anchor is removed.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
 pub struct AnchorId {
     pub(crate) slot: u32,
     pub(crate) generation: u32,

@@ -115,7 +115,7 @@ pub enum SolverError {
 }
 
 /// What one [`Solver::step`] did.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize, serde::Deserialize)]
 pub struct StepReport {
     /// Sub-steps taken (0 for a zero-length step).
     pub substeps: u32,
@@ -138,7 +138,7 @@ pub struct StepReport {
 }
 
 /// Running totals over a solver's life.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize, serde::Deserialize)]
 pub struct Diagnostics {
     /// Steps taken.
     pub steps: u64,

@@ -105,6 +105,19 @@ impl Stepper {
         &self.diagnostics
     }
 
+    /// What the stepper carries from one step to the next: its running totals and the
+    /// implicit solve's warm start (empty before the first implicit step).
+    pub(crate) fn carried(&self) -> (Diagnostics, Vec<glam::DVec3>) {
+        (self.diagnostics, self.implicit.warm_start().to_vec())
+    }
+
+    /// Restores what [`Self::carried`] gave.
+    pub(crate) fn set_carried(&mut self, diagnostics: Diagnostics, warm_start: &[glam::DVec3]) {
+        self.diagnostics = diagnostics;
+        self.implicit.set_warm_start(warm_start);
+        self.forces_ready = false;
+    }
+
     /// The stable-step estimate for the model (cached until one of its parts changes).
     pub fn stability(&mut self, model: Model<'_>) -> Stability {
         let revisions = model.revisions();

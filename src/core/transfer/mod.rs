@@ -200,6 +200,9 @@ pub enum TransferError {
         /// Displacements given.
         found: usize,
     },
+    /// A snapshot's dense surface does not fit this one, or holds bad values.
+    #[error("the snapshot's dense surface does not fit: {0}")]
+    Snapshot(String),
     /// An output slice has the wrong length.
     #[error("the output holds {found} points, the transfer {expected}")]
     OutputLength {

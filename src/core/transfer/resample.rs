@@ -109,7 +109,7 @@ pub enum ResampleError {
 }
 
 /// What a resampling did.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
 pub struct ResampleReport {
     /// Points inserted.
     pub inserted: usize,
@@ -148,6 +148,19 @@ fn stretch(normal: Vec3, g1: Vec3A, g2: Vec3A) -> (f32, Vec3) {
 }
 
 impl Resampler {
+    /// Each dense point's rest spacing and the spacing sampled where it lies (what a
+    /// snapshot keeps).
+    pub(crate) fn spacings(&self) -> (&[f32], &[f32]) {
+        (&self.spacing, &self.sampled)
+    }
+
+    /// Replaces what [`Self::spacings`] gave (one of each per dense point, checked by the
+    /// caller).
+    pub(crate) fn set_spacings(&mut self, spacing: &[f32], sampled: &[f32]) {
+        self.spacing = spacing.to_vec();
+        self.sampled = sampled.to_vec();
+    }
+
     /// Measures the rest spacing of the transfer's dense points.
     pub fn new(transfer: &Transfer) -> Self {
         let rest = transfer.rest_positions();

@@ -64,6 +64,48 @@ impl Anchors {
         })
     }
 
+    /// Every slot as `(generation, anchor)` and the free slots in the order they will be
+    /// reused: what a snapshot needs to give the same ids back.
+    pub(crate) fn slots(&self) -> (Vec<(u32, Option<Anchor>)>, Vec<u32>) {
+        let slots = self
+            .slots
+            .iter()
+            .map(|s| (s.generation, s.anchor))
+            .collect();
+        (slots, self.free.clone())
+    }
+
+    /// Anchors with exactly these slots (see [`Self::slots`]), each anchor checked against
+    /// `points` points and the free list against the empty slots.
+    pub(crate) fn from_slots(
+        slots: &[(u32, Option<Anchor>)],
+        free: &[u32],
+        points: usize,
+    ) -> Result<Self, SolverError> {
+        for anchor in slots.iter().filter_map(|(_, a)| a.as_ref()) {
+            Self::default().check(anchor, points)?;
+        }
+        let mut empty: Vec<u32> = (0..slots.len() as u32)
+            .filter(|&i| slots[i as usize].1.is_none())
+            .collect();
+        let mut listed = free.to_vec();
+        empty.sort_unstable();
+        listed.sort_unstable();
+        if empty != listed {
+            return Err(SolverError::InvalidConfig(
+                "the anchors' free list does not match their empty slots",
+            ));
+        }
+        Ok(Self {
+            slots: slots
+                .iter()
+                .map(|&(generation, anchor)| AnchorSlot { generation, anchor })
+                .collect(),
+            free: free.to_vec(),
+            revision: next_revision(),
+        })
+    }
+
     fn slot(&self, id: AnchorId) -> Option<&AnchorSlot> {
         self.slots
             .get(id.slot as usize)
