@@ -12,7 +12,7 @@ use std::time::Duration;
 
 use bevy::input::mouse::{AccumulatedMouseMotion, AccumulatedMouseScroll, MouseScrollUnit};
 use bevy::prelude::*;
-use bevy::render::view::screenshot::{Screenshot, ScreenshotCaptured, save_to_disk};
+use bevy::render::view::screenshot::{Screenshot, ScreenshotCaptured};
 use bevy::time::TimeUpdateStrategy;
 use bevy::window::{PrimaryWindow, WindowResolution};
 use bevy_point_springs::prelude::*;
@@ -413,7 +413,7 @@ fn screenshot_and_exit(
         (Some(path), frames) if frame == frames.unwrap_or(DEFAULT_SCREENSHOT_FRAMES) => {
             commands
                 .spawn(Screenshot::primary_window())
-                .observe(save_to_disk(path.clone()))
+                .observe(save_atomically(path.clone()))
                 .observe(
                     |captured: On<ScreenshotCaptured>, mut exit: MessageWriter<AppExit>| {
                         let drawn = drawn_fraction(&captured);
@@ -431,5 +431,44 @@ fn screenshot_and_exit(
             exit.write(AppExit::Success);
         }
         _ => {}
+    }
+}
+
+/// Saves a screenshot to `path` as Bevy's `save_to_disk` does (RGB, the format from the
+/// extension), but like every file the project writes: to a temporary file in the same
+/// folder, renamed into place once complete.
+fn save_atomically(path: PathBuf) -> impl FnMut(On<ScreenshotCaptured>) {
+    move |captured| {
+        let saved = captured
+            .image
+            .clone()
+            .try_into_dynamic()
+            .map_err(|e| e.to_string())
+            .and_then(|image| {
+                let dir = match path.parent() {
+                    Some(d) if !d.as_os_str().is_empty() => d,
+                    _ => std::path::Path::new("."),
+                };
+                let suffix = path
+                    .extension()
+                    .map(|e| format!(".{}", e.to_string_lossy()))
+                    .unwrap_or_default();
+                let mut builder = tempfile::Builder::new();
+                builder.prefix(".screenshot-").suffix(&suffix);
+                // Readable like a file `File::create` makes (the umask still applies).
+                #[cfg(unix)]
+                builder.permissions(std::os::unix::fs::PermissionsExt::from_mode(0o644));
+                let temp = builder.tempfile_in(dir).map_err(|e| e.to_string())?;
+                image
+                    .to_rgb8()
+                    .save(temp.path())
+                    .map_err(|e| e.to_string())?;
+                temp.persist(&path).map_err(|e| e.error.to_string())?;
+                Ok(())
+            });
+        match saved {
+            Ok(()) => info!("screenshot saved to {}", path.display()),
+            Err(e) => error!("cannot save the screenshot to {}: {e}", path.display()),
+        }
     }
 }

@@ -19,9 +19,12 @@ pub fn write_via_temp(
         .extension()
         .map(|e| format!(".{}", e.to_string_lossy()))
         .unwrap_or_default();
-    let temp = tempfile::Builder::new()
-        .prefix(".point-springs-")
-        .suffix(&suffix)
+    let mut builder = tempfile::Builder::new();
+    builder.prefix(".point-springs-").suffix(&suffix);
+    // Readable like a file `File::create` makes (the umask still applies), not 0600.
+    #[cfg(unix)]
+    builder.permissions(std::os::unix::fs::PermissionsExt::from_mode(0o644));
+    let temp = builder
         .tempfile_in(dir)
         .map_err(|e| format!("{}: {e}", path.display()))?;
     write(temp.path())?;
