@@ -15,6 +15,7 @@ use bevy::prelude::*;
 use bevy::render::view::screenshot::{Screenshot, ScreenshotCaptured};
 use bevy::time::TimeUpdateStrategy;
 use bevy::window::{PrimaryWindow, WindowResolution};
+use bevy_point_springs::core::cloud::io::write_atomically_to_path;
 use bevy_point_springs::prelude::*;
 
 /// Window size of every example.
@@ -445,26 +446,8 @@ fn save_atomically(path: PathBuf) -> impl FnMut(On<ScreenshotCaptured>) {
             .try_into_dynamic()
             .map_err(|e| e.to_string())
             .and_then(|image| {
-                let dir = match path.parent() {
-                    Some(d) if !d.as_os_str().is_empty() => d,
-                    _ => std::path::Path::new("."),
-                };
-                let suffix = path
-                    .extension()
-                    .map(|e| format!(".{}", e.to_string_lossy()))
-                    .unwrap_or_default();
-                let mut builder = tempfile::Builder::new();
-                builder.prefix(".screenshot-").suffix(&suffix);
-                // Readable like a file `File::create` makes (the umask still applies).
-                #[cfg(unix)]
-                builder.permissions(std::os::unix::fs::PermissionsExt::from_mode(0o644));
-                let temp = builder.tempfile_in(dir).map_err(|e| e.to_string())?;
-                image
-                    .to_rgb8()
-                    .save(temp.path())
-                    .map_err(|e| e.to_string())?;
-                temp.persist(&path).map_err(|e| e.error.to_string())?;
-                Ok(())
+                write_atomically_to_path(&path, |tmp| Ok(image.to_rgb8().save(tmp)?))
+                    .map_err(|e| e.to_string())
             });
         match saved {
             Ok(()) => info!("screenshot saved to {}", path.display()),

@@ -2,7 +2,7 @@
 //! PNG's text is drawn with the Ubuntu typeface that egui ships, through ab_glyph, so no
 //! system font is needed).
 
-use crate::atomic::write_via_temp;
+use bevy_point_springs::core::cloud::io::write_atomically_to_path;
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
@@ -65,12 +65,12 @@ impl Chart {
         register_font()?;
         let svg = stem.with_extension("svg");
         let png = stem.with_extension("png");
-        write_via_temp(&svg, |tmp| {
-            self.draw(SVGBackend::new(tmp, SIZE).into_drawing_area())
+        write_atomically_to_path(&svg, |tmp| {
+            Ok(self.draw(SVGBackend::new(tmp, SIZE).into_drawing_area())?)
         })
         .map_err(|e| Failure::other(format!("{}: {e}", svg.display())))?;
-        write_via_temp(&png, |tmp| {
-            self.draw(BitMapBackend::new(tmp, SIZE).into_drawing_area())
+        write_atomically_to_path(&png, |tmp| {
+            Ok(self.draw(BitMapBackend::new(tmp, SIZE).into_drawing_area())?)
         })
         .map_err(|e| Failure::other(format!("{}: {e}", png.display())))?;
         Ok([svg, png])

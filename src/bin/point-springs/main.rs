@@ -29,7 +29,6 @@
 //! commands share are in [`args`], failures and exit codes in [`failure`].
 
 mod args;
-mod atomic;
 mod bench;
 mod chart;
 mod failure;

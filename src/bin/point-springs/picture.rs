@@ -69,10 +69,11 @@ pub struct Drawn {
 /// The file is written to a temporary file and renamed into place.
 pub fn render(clouds: &[&PointCloud], view: &View, path: &Path) -> Result<Drawn, String> {
     let mut drawn = None;
-    crate::atomic::write_via_temp(path, |tmp| {
+    bevy_point_springs::core::cloud::io::write_atomically_to_path(path, |tmp| {
         drawn = Some(draw(clouds, view, tmp)?);
         Ok(())
-    })?;
+    })
+    .map_err(|e| e.to_string())?;
     drawn.ok_or_else(|| "nothing was drawn".to_owned())
 }
 

@@ -39,11 +39,10 @@ pub use dense::{DenseCloud, DenseState, ExportError, FrameParts};
 
 use std::ops::ControlFlow;
 
-use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
 use crate::core::PointCloud;
-use crate::core::cloud::CloudError;
+use crate::core::cloud::{Aabb, CloudError};
 use crate::core::network::{
     DenseSupport, NetworkConfig, NetworkError, SpringNetwork, build_network_over, dense_areas_after,
 };
@@ -244,17 +243,12 @@ pub const PRECISION_FRACTION: f32 = 1.0 / 32.0;
 /// over √n, exact within a factor of two on surfaces). A unit sphere of 800 points is
 /// refused from about 3·10^4 away from the origin; one of radius 10^6 centred on it is
 /// accepted.
-pub fn check_precision(positions: &[Vec3]) -> Result<(), PrepareError> {
-    let Some(first) = positions.first() else {
+pub fn check_precision(cloud: &PointCloud) -> Result<(), PrepareError> {
+    let Some(Aabb { min: lo, max: hi }) = cloud.bounds() else {
         return Ok(());
     };
-    let (mut lo, mut hi) = (*first, *first);
-    for p in positions {
-        lo = lo.min(*p);
-        hi = hi.max(*p);
-    }
     let magnitude = lo.abs().max(hi.abs()).max_element();
-    let spacing = (hi - lo).length() / (positions.len() as f32).sqrt();
+    let spacing = (hi - lo).length() / (cloud.len() as f32).sqrt();
     // The gap to the next f32 above the largest coordinate (finite: PointCloud checks).
     let resolution = f32::from_bits(magnitude.to_bits().saturating_add(1)) - magnitude;
     // A cloud of one point, or of identical ones, has no spacing: later stages name that.
@@ -293,7 +287,7 @@ pub fn prepare_surface(
     progress: &mut dyn FnMut(Progress) -> ControlFlow<()>,
 ) -> Result<PreparedSurface, PrepareError> {
     config.validate()?;
-    check_precision(cloud.positions())?;
+    check_precision(&cloud)?;
     let mut report = |stage: Stage, within: f32| {
         let (start, end) = (stage_start(stage), next_start(stage));
         let fraction = start + (end - start) * within.clamp(0.0, 1.0);

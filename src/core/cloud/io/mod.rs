@@ -330,6 +330,24 @@ pub fn write_ply(path: &Path, cloud: &PointCloud, encoding: PlyEncoding) -> Resu
     write_atomically(path, |mut out| write_ply_to(&mut out, cloud, encoding))
 }
 
+/// Any error, from [`write_atomically_to_path`]'s writer or from the file system.
+pub type BoxedError = Box<dyn std::error::Error + Send + Sync>;
+
+/// A temporary file beside `path` (in its folder, so that renaming it onto `path` is atomic),
+/// ending in `suffix`, readable like a file `File::create` makes (the umask still applies),
+/// not 0600.
+fn temp_beside(path: &Path, suffix: &str) -> std::io::Result<tempfile::NamedTempFile> {
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    let mut builder = tempfile::Builder::new();
+    builder.prefix(".point-springs-").suffix(suffix);
+    #[cfg(unix)]
+    builder.permissions(std::os::unix::fs::PermissionsExt::from_mode(0o644));
+    builder.tempfile_in(dir)
+}
+
 /// Writes a file through `write` into a temporary file in `path`'s directory, flushed to
 /// disk, then renamed to `path`; on any failure the temporary file is removed and `path` is
 /// untouched.
@@ -341,22 +359,36 @@ pub fn write_atomically(
         path: path.to_owned(),
         source,
     };
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    let mut builder = tempfile::Builder::new();
-    builder.prefix(".point-springs-").suffix(".tmp");
-    // Readable like a file `File::create` makes (the umask still applies), not 0600.
-    #[cfg(unix)]
-    builder.permissions(std::os::unix::fs::PermissionsExt::from_mode(0o644));
-    let mut file = builder.tempfile_in(dir).map_err(err)?;
+    let mut file = temp_beside(path, ".tmp").map_err(err)?;
     {
         let mut out = std::io::BufWriter::new(file.as_file_mut());
         write(&mut out).map_err(err)?;
         out.flush().map_err(err)?;
     }
     file.as_file().sync_all().map_err(err)?;
+    file.persist(path).map_err(|e| err(e.error))?;
+    Ok(())
+}
+
+/// [`write_atomically`] for writers that insist on opening a path of their own (plotters'
+/// backends, an image encoder): `write` gets a temporary path in `path`'s folder with
+/// `path`'s extension (which such writers read the format from); once it succeeds the file
+/// is renamed to `path`. On any failure the temporary file is removed and `path` is
+/// untouched; `write`'s own error comes back as it was.
+pub fn write_atomically_to_path(
+    path: &Path,
+    write: impl FnOnce(&Path) -> Result<(), BoxedError>,
+) -> Result<(), BoxedError> {
+    let err = |source| SaveError {
+        path: path.to_owned(),
+        source,
+    };
+    let suffix = path
+        .extension()
+        .map(|e| format!(".{}", e.to_string_lossy()))
+        .unwrap_or_default();
+    let file = temp_beside(path, &suffix).map_err(err)?;
+    write(file.path())?;
     file.persist(path).map_err(|e| err(e.error))?;
     Ok(())
 }
@@ -441,6 +473,35 @@ mod tests {
         // A whole write replaces it.
         write_atomically(&path, |out| out.write_all(b"the new file")).unwrap();
         assert_eq!(std::fs::read(&path).unwrap(), b"the new file");
+        assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 1);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn a_writer_given_a_path_writes_beside_it_and_renames() {
+        let dir =
+            std::env::temp_dir().join(format!("point-springs-to-path-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("picture.png");
+        std::fs::write(&path, b"the old picture").unwrap();
+        // The writer sees a path in the same folder with the same extension, and fails.
+        let e = write_atomically_to_path(&path, |tmp| {
+            assert_eq!(tmp.parent(), Some(dir.as_path()));
+            assert_eq!(tmp.extension(), path.extension());
+            std::fs::write(tmp, b"half a pic")?;
+            Err("the encoder gave up".into())
+        })
+        .unwrap_err();
+        assert_eq!(e.to_string(), "the encoder gave up");
+        assert_eq!(std::fs::read(&path).unwrap(), b"the old picture");
+        assert_eq!(
+            std::fs::read_dir(&dir).unwrap().count(),
+            1,
+            "a temporary file is left"
+        );
+        write_atomically_to_path(&path, |tmp| Ok(std::fs::write(tmp, b"the new picture")?))
+            .unwrap();
+        assert_eq!(std::fs::read(&path).unwrap(), b"the new picture");
         assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 1);
         std::fs::remove_dir_all(&dir).unwrap();
     }
