@@ -66,7 +66,10 @@ fn main() -> AppExit {
         ..default()
     });
     if scripted {
-        app.add_systems(Update, scripted_hand);
+        app.add_systems(
+            FixedUpdate,
+            scripted_hand.before(PointSpringsSystems::Forces),
+        );
     }
     app.run()
 }
@@ -112,7 +115,7 @@ fn report_outcomes(mut outcomes: MessageReader<ModelOutcome>) {
     }
 }
 
-/// The scripted drags, frame by frame (one fixed tick per frame), then a bake.
+/// The scripted drags, tick by tick, then a bake.
 fn scripted_hand(
     frames: Res<FramesSinceReady>,
     surfaces: Query<Entity, With<DeformableSurface>>,

@@ -60,8 +60,8 @@ pub mod prelude {
     pub use crate::core::scene::{Scene, SceneError, SceneRun};
     pub use crate::core::simplify::{SimplifyConfig, simplify, simplify_cloud};
     pub use crate::core::solver::{
-        Anchor, AnchorId, DampingModel, Integrator, Solver, SolverConfig, SolverError,
-        SpringMaterial, SpringSpec, SubstepPolicy,
+        Anchor, AnchorId, DampingModel, Instability, InstabilityResponse, Integrator, Solver,
+        SolverConfig, SolverError, SpringMaterial, SpringSpec, SubstepPolicy,
     };
     pub use crate::core::transfer::resample::ResampleConfig;
     pub use crate::core::transfer::{NormalUpdate, Transfer, TransferConfig, TransferError};
@@ -82,8 +82,9 @@ pub mod prelude {
         CloudAsset, DeformableSurface, DenseSurface, GrabMessage, GrabSettings, Grabs,
         ModelMessage, ModelOutcome, PointSpringsPlugin, PointSpringsSystems, PreparationProgress,
         PrepareAgain, PrepareAgainFailed, SceneAsset, SceneTimeline, SimulationPoints, StepOnce,
-        SurfaceAnchors, SurfaceForces, SurfaceInView, SurfaceMasses, SurfaceMaterial,
-        SurfaceNetwork, SurfaceSettings, SurfaceSleep, SurfaceSprings, SurfaceStatus,
-        SurfaceStepper, SurfaceTimings, SurfaceWork, TransferTiming,
+        SurfaceAnchors, SurfaceForces, SurfaceHealth, SurfaceInView, SurfaceMasses,
+        SurfaceMaterial, SurfaceNetwork, SurfaceSettings, SurfaceSleep, SurfaceSprings,
+        SurfaceStatus, SurfaceStepper, SurfaceTimings, SurfaceUnstable, SurfaceWork,
+        TransferTiming,
     };
 }

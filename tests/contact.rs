@@ -394,3 +394,80 @@ fn contact_settings_out_of_range_turn_contacts_off_and_the_app_runs_on() {
     }
     assert!(translation(&app, caught).y > -1.2, "caught by the hat");
 }
+
+/// Counts the [`SurfaceUnstable`] events observed, by surface.
+#[derive(Resource, Default)]
+struct Unstable(Vec<(Entity, Instability)>);
+
+#[test]
+fn a_surface_made_to_diverge_says_so_once_and_hands_rapier_nothing_bad() {
+    // Two hats side by side, a ball dropped on each. The left one is made to diverge:
+    // symplectic Euler, sub-steps off, springs 10^4 times stiffer, frozen when the guard
+    // steps in. It must say so (health, one event), never give its ball a non-finite or
+    // absurd impulse, and still hold its ball up; the right one runs on as if alone.
+    let mut app = create_app(Vec3::new(0.0, -9.81, 0.0));
+    app.init_resource::<Unstable>().add_observer(
+        |event: On<SurfaceUnstable>, mut seen: ResMut<Unstable>| {
+            seen.0.push((event.entity, event.reason));
+        },
+    );
+    let left = spawn_hat(&mut app, Transform::from_xyz(-3.0, 0.0, 0.0));
+    let right = spawn_hat(&mut app, Transform::from_xyz(3.0, 0.0, 0.0));
+    {
+        let mut stepper = app.world_mut().get_mut::<SurfaceStepper>(left).unwrap();
+        let mut config = *stepper.config();
+        config.integrator = Integrator::SymplecticEuler;
+        config.substeps = SubstepPolicy::Unchecked;
+        config.on_instability = InstabilityResponse::Freeze;
+        stepper.set_config(config).unwrap();
+        let mut material = app.world_mut().get_mut::<SurfaceMaterial>(left).unwrap();
+        material.stretch_stiffness *= 1.0e4;
+        material.bend_stiffness *= 1.0e4;
+    }
+    let ball_left = app
+        .world_mut()
+        .spawn(ball(Vec3::new(-3.0, -0.4, 0.0), 0.15, 1000.0, Vec3::ZERO))
+        .id();
+    let ball_right = app
+        .world_mut()
+        .spawn(ball(Vec3::new(3.0, -0.4, 0.0), 0.15, 1000.0, Vec3::ZERO))
+        .id();
+    let mut fastest = 0.0f32;
+    for _ in 0..120 {
+        app.update();
+        for b in [ball_left, ball_right] {
+            let v = velocity(&app, b);
+            assert!(v.is_finite() && translation(&app, b).is_finite());
+            fastest = fastest.max(v.length());
+        }
+    }
+    let health = |e| app.world().get::<SurfaceHealth>(e).unwrap().clone();
+    let (sick, well) = (health(left), health(right));
+    assert!(!sick.is_stable() && sick.episodes == 1, "{sick:?}");
+    assert!(sick.troubled_steps > 100, "{sick:?}");
+    assert!(well.is_stable() && well.episodes == 0, "{well:?}");
+    let seen = &app.world().resource::<Unstable>().0;
+    assert_eq!(seen.len(), 1, "one event: {seen:?}");
+    assert_eq!(seen[0].0, left);
+    // Nothing absurd: no ball much faster than its fall to the hat's bottom gives
+    // (√(2·9.81·0.45) = 2.97 m/s).
+    assert!(fastest < 3.6, "a ball reached {fastest} m/s");
+    // Both balls rest in their hats, whose bottom is at -1 (ball radius 0.15).
+    for b in [ball_left, ball_right] {
+        let y = translation(&app, b).y;
+        assert!(y > -1.2 && y < -0.3, "{y}");
+    }
+    assert!(status_ready(&app, right) && status_ready(&app, left));
+    assert!(
+        app.world()
+            .get::<SurfaceStepper>(right)
+            .unwrap()
+            .diagnostics()
+            .guard_trips
+            == 0
+    );
+}
+
+fn status_ready(app: &App, e: Entity) -> bool {
+    app.world().get::<SurfaceStatus>(e).unwrap().is_ready()
+}

@@ -6,7 +6,8 @@ use bevy_point_springs::core::fixtures::cloth::{
     CLOTH_DT, CLOTH_SIZE, CLOTH_STEPS, ReferenceCloth, cloth_grid, max_sag,
 };
 use bevy_point_springs::core::solver::{
-    Integrator, STANDARD_GRAVITY, Solver, SolverConfig, SolverError, SpringSpec, SubstepPolicy,
+    Instability, InstabilityResponse, Integrator, STANDARD_GRAVITY, Solver, SolverConfig,
+    SolverError, SpringSpec, SubstepPolicy,
 };
 use glam::Vec3;
 
@@ -236,6 +237,11 @@ fn symplectic_energy_stays_bounded_without_damping() {
 #[test]
 fn explicit_euler_energy_grows_without_damping_and_the_guard_acts() {
     let mut s = undamped_patch(Integrator::ExplicitEuler);
+    // Held where the guard stops it, not handed over to implicit Euler (see
+    // `a_failing_explicit_step_falls_back_to_implicit`).
+    let mut c = *s.config();
+    c.on_instability = InstabilityResponse::Freeze;
+    s.set_config(c).unwrap();
     // No step is stable: with sub-stepping refused, the solver says so.
     let dt = 0.5 * s.stability().symplectic_dt;
     assert_eq!(s.stability().explicit_dt, 0.0);
@@ -247,26 +253,53 @@ fn explicit_euler_energy_grows_without_damping_and_the_guard_acts() {
         refusing.step(dt),
         Err(SolverError::StepTooLarge { stable_dt, .. }) if stable_dt == 0.0
     ));
-    // Taken anyway, the energy grows until the state overflows; the guard then restores it.
+    // Taken anyway, the energy grows until a point runs away (or the state overflows); the
+    // guard then restores the state from before that step.
     let e0 = s.energy().total();
-    for _ in 0..100 {
-        s.step(dt).unwrap();
-    }
-    assert!(
-        s.energy().total() > 2.0 * e0,
-        "{} vs {e0}",
-        s.energy().total()
-    );
-    let mut steps = 100;
+    let (mut steps, mut grew) = (0, false);
     while s.diagnostics().guard_trips == 0 && steps < 100_000 {
         let r = s.step(dt).unwrap();
         assert!(r.finite);
+        grew |= s.energy().total() > 2.0 * e0;
         steps += 1;
     }
+    assert!(grew, "the energy never doubled in {steps} steps");
     assert_eq!(s.diagnostics().guard_trips, 1, "after {steps} steps");
     assert!(s.diagnostics().last.recovered);
+    assert!(matches!(
+        s.diagnostics().last.instability,
+        Some(Instability::Runaway | Instability::NonFinite)
+    ));
+    assert!(!s.diagnostics().fell_back);
     assert!(s.positions().iter().all(|p| p.is_finite()));
-    assert!(s.velocities().iter().all(|v| v.is_finite()));
+    // Frozen: every point stopped where the guard left it.
+    assert!(s.velocities().iter().all(|v| *v == Vec3::ZERO));
+}
+
+#[test]
+fn a_failing_explicit_step_falls_back_to_implicit() {
+    // The same patch with sub-steps allowed: no explicit step is stable, so the first step
+    // is taken by implicit Euler, and every later one; the energy then only decays.
+    let mut s = undamped_patch(Integrator::ExplicitEuler);
+    let mut c = *s.config();
+    c.substeps = SubstepPolicy::default();
+    s.set_config(c).unwrap();
+    let dt = 0.5 * s.stability().symplectic_dt;
+    let e0 = s.energy().total();
+    let r = s.step(dt).unwrap();
+    assert!(r.fell_back && r.finite && !r.recovered, "{r:?}");
+    assert_eq!(r.instability, Some(Instability::SubstepLimit));
+    assert_eq!(s.stepper.integrator(), Integrator::ImplicitEuler);
+    for _ in 0..200 {
+        let r = s.step(dt).unwrap();
+        assert!(r.finite && !r.recovered && r.instability.is_none(), "{r:?}");
+    }
+    let d = *s.diagnostics();
+    assert!(d.fell_back && d.guard_trips == 0, "{d:?}");
+    assert!(s.energy().total() <= e0 * 1.01);
+    // Choosing an integrator again starts over.
+    s.set_integrator(Integrator::SymplecticEuler);
+    assert_eq!(s.stepper.integrator(), Integrator::SymplecticEuler);
 }
 
 // ---------------------------------------------------------------------------------------

@@ -3,8 +3,8 @@
 
 use bevy_point_springs::core::fixtures::cloth::cloth_grid;
 use bevy_point_springs::core::solver::{
-    Anchor, DampingModel, Integrator, STANDARD_GRAVITY, Solver, SolverConfig, SolverError,
-    SpringSpec, SubstepPolicy,
+    Anchor, DampingModel, InstabilityResponse, Integrator, STANDARD_GRAVITY, Solver, SolverConfig,
+    SolverError, SpringSpec, SubstepPolicy,
 };
 use glam::Vec3;
 
@@ -86,6 +86,14 @@ fn a_poke_of_ten_thousand_times_gravity() {
         // The paper's damping (eq 3): explicit Euler needs it (see the next assertion).
         let mut c = *s.config();
         if integrator == Integrator::ExplicitEuler {
+            // By default no stable explicit step means implicit Euler takes over ...
+            let mut falls_back = s.clone();
+            let r = falls_back.step(1.0 / 60.0).unwrap();
+            assert!(r.fell_back && r.finite, "{r:?}");
+            assert_eq!(falls_back.stepper.integrator(), Integrator::ImplicitEuler);
+            // ... and without a fall-back the solver says it cannot.
+            c.on_instability = InstabilityResponse::Freeze;
+            s.set_config(c).unwrap();
             assert!(matches!(
                 s.step(1.0 / 60.0),
                 Err(SolverError::StepTooLarge { stable_dt, .. }) if stable_dt == 0.0

@@ -2,10 +2,12 @@
 //! simulation, and the `--screenshot PATH --frames N` mode used to check examples headless
 //! (under Xvfb).
 //!
-//! With `--frames N` time advances exactly one fixed tick (1/60 s) per rendered frame, and
-//! frames are counted from the moment every surface is prepared (and held at rest for a
-//! warm-up while the renderer compiles its pipelines), so frame N shows the same moment of
-//! the simulation on every machine however slow its renderer or its preparation.
+//! With `--frames N` time advances by whole fixed ticks (1/60 s) per rendered frame, and
+//! ticks are counted from the moment every surface is prepared (and held at rest for a
+//! warm-up while the renderer compiles its pipelines), so frame N — the frame after tick
+//! N — shows the same moment of the simulation on every machine however slow its renderer
+//! or its preparation. Far from tick N a frame takes [`FAST_FORWARD_TICKS`] ticks, so a
+//! software renderer draws a tenth of the frames; the last ones take one tick each.
 
 use std::path::PathBuf;
 use std::time::Duration;
@@ -27,7 +29,12 @@ pub const DEFAULT_SCREENSHOT_FRAMES: u32 = 60;
 
 /// Scripted runs hold the prepared surfaces still for this many frames before counting,
 /// so that the renderer has compiled its pipelines (the first frames draw nothing).
-pub const WARMUP_FRAMES: u32 = 60;
+pub const WARMUP_FRAMES: u32 = 30;
+
+/// Ticks a scripted frame takes while the screenshot is still more than this many ticks
+/// away (then one tick a frame). At most 15: Bevy's virtual clock takes at most 250 ms a
+/// frame.
+pub const FAST_FORWARD_TICKS: u32 = 10;
 
 /// The fixed tick of the examples: the shipped scenes' step.
 pub const TICK_HZ: f64 = 60.0;
@@ -126,6 +133,8 @@ impl Plugin for DemoPlugin {
             ..default()
         })
         .init_resource::<FramesSinceReady>()
+        .init_resource::<ScriptStarted>()
+        .add_systems(FixedFirst, count_ticks)
         .add_systems(
             Update,
             (orbit_camera, keys, show_status, screenshot_and_exit),
@@ -350,26 +359,46 @@ fn drawn_fraction(image: &Image) -> f32 {
     drawn as f32 / pixels.len() as f32
 }
 
-/// Frames rendered since every surface was prepared.
+/// Fixed ticks run since every surface was prepared and the warm-up ended (none before:
+/// scripts act on the tick this reaches their number, in `FixedUpdate`).
 #[derive(Resource, Debug, Default)]
 pub struct FramesSinceReady(pub Option<u32>);
 
+/// Counts the ticks of a scripted run once its surfaces run.
+fn count_ticks(
+    args: Res<DemoArgs>,
+    mut ticks: ResMut<FramesSinceReady>,
+    started: Res<ScriptStarted>,
+) {
+    if args.scripted() && started.0 {
+        *ticks.0.get_or_insert(0) += 1;
+    }
+}
+
+/// The warm-up is over and the surfaces run.
+#[derive(Resource, Debug, Default)]
+struct ScriptStarted(bool);
+
+#[allow(clippy::too_many_arguments)]
 fn screenshot_and_exit(
     mut commands: Commands,
     args: Res<DemoArgs>,
-    mut frames: ResMut<FramesSinceReady>,
+    ticks: Res<FramesSinceReady>,
+    mut started: ResMut<ScriptStarted>,
+    mut clock: ResMut<TimeUpdateStrategy>,
     mut surfaces: Query<(&SurfaceStatus, &mut SurfaceSettings)>,
     mut warmup: Local<u32>,
+    mut shot: Local<bool>,
     mut exit: MessageWriter<AppExit>,
 ) {
-    if !args.scripted() {
+    if !args.scripted() || *shot {
         return;
     }
     let prepared = !surfaces.is_empty()
         && surfaces
             .iter()
             .all(|(s, _)| matches!(s, SurfaceStatus::Ready | SurfaceStatus::Failed(_)));
-    if prepared && frames.0.is_none() {
+    if prepared && !started.0 {
         let failed: Vec<&str> = surfaces
             .iter()
             .filter_map(|(s, _)| match s {
@@ -384,34 +413,33 @@ fn screenshot_and_exit(
             return;
         }
     }
-    let frame = match (&mut frames.0, prepared) {
-        (Some(n), _) => {
-            *n += 1;
-            *n
-        }
-        (None, true) if *warmup < WARMUP_FRAMES => {
-            // Held at rest while the renderer warms up.
+    let target = args.frames.unwrap_or(DEFAULT_SCREENSHOT_FRAMES);
+    if !started.0 {
+        // Held still until prepared, then at rest while the renderer warms up.
+        if prepared {
             *warmup += 1;
-            for (_, mut settings) in &mut surfaces {
-                settings.paused = *warmup < WARMUP_FRAMES;
-            }
-            return;
         }
-        (None, true) => {
-            // The first frame whose tick takes a step.
-            frames.0 = Some(1);
-            1
+        let running = prepared && *warmup >= WARMUP_FRAMES;
+        for (_, mut settings) in &mut surfaces {
+            settings.paused = !running;
         }
-        (None, false) => {
-            // Held still from the start, so that the first step is frame 1's.
-            for (_, mut settings) in &mut surfaces {
-                settings.paused = true;
-            }
-            return;
-        }
+        started.0 = running;
+        return;
+    }
+    let tick = ticks.0.unwrap_or(0);
+    // The next frame's ticks: many while the screenshot is far, then one at a time.
+    let next = if target.saturating_sub(tick) > FAST_FORWARD_TICKS {
+        FAST_FORWARD_TICKS
+    } else {
+        1
     };
-    match (&args.screenshot, args.frames) {
-        (Some(path), frames) if frame == frames.unwrap_or(DEFAULT_SCREENSHOT_FRAMES) => {
+    *clock = TimeUpdateStrategy::ManualDuration(Duration::from_secs_f64(f64::from(next) / TICK_HZ));
+    if tick < target {
+        return;
+    }
+    *shot = true;
+    match &args.screenshot {
+        Some(path) => {
             commands
                 .spawn(Screenshot::primary_window())
                 .observe(save_atomically(path.clone()))
@@ -427,11 +455,14 @@ fn screenshot_and_exit(
                         }
                     },
                 );
+            // No more ticks while the capture is under way.
+            for (_, mut settings) in &mut surfaces {
+                settings.paused = true;
+            }
         }
-        (None, Some(frames)) if frame >= frames => {
+        None => {
             exit.write(AppExit::Success);
         }
-        _ => {}
     }
 }
 

@@ -32,6 +32,7 @@ use crate::core::solver::{
 };
 
 use super::assets::{CloudAsset, SceneAsset};
+use super::health::SurfaceHealth;
 
 /// Where a surface's dense cloud comes from.
 #[derive(Debug, Clone)]
@@ -71,6 +72,7 @@ pub enum SurfaceSource {
 #[derive(Component, Debug, Clone)]
 #[require(
     SurfaceStatus,
+    SurfaceHealth,
     SurfaceSettings,
     SurfaceSleep,
     SurfaceWork,
@@ -382,6 +384,7 @@ pub(crate) struct ModelQuery {
     springs: &'static SurfaceSprings,
     anchors: &'static SurfaceAnchors,
     pressure: Option<&'static SurfacePressure>,
+    network: &'static SurfaceNetwork,
 }
 
 impl ModelQueryItem<'_, '_> {
@@ -392,6 +395,7 @@ impl ModelQueryItem<'_, '_> {
             springs: self.springs,
             anchors: self.anchors,
             pressure: self.pressure.map(|p| &p.0),
+            rest: Some(&self.network.positions),
         }
     }
 }

@@ -34,6 +34,7 @@ pub mod components;
 #[cfg(feature = "rapier")]
 pub mod contact;
 pub mod grab;
+pub mod health;
 pub mod model;
 #[cfg(feature = "egui")]
 pub mod panel;
@@ -61,6 +62,7 @@ pub use components::{
 #[cfg(feature = "rapier")]
 pub use contact::{ContactDiagnostics, SurfaceContact, SurfaceContactPlugin, SurfaceContacts};
 pub use grab::{GrabMessage, GrabSettings, Grabs};
+pub use health::{STABLE_STEPS_TO_RECOVER, SurfaceHealth, SurfaceUnstable};
 pub use model::{ModelMessage, ModelOutcome};
 pub use prepare::{PreparationPool, PrepareAgain, PrepareAgainFailed};
 
@@ -99,7 +101,8 @@ pub enum PointSpringsSystems {
     /// and gas pressure. Put systems that add to [`SurfaceForces`] here.
     Forces,
     /// Euler stepping (explicit, symplectic or implicit, sub-stepped where needed), with
-    /// the game's forces added; then plastic flow for materials that yield. Sleeping
+    /// the game's forces added; each surface's [`SurfaceHealth`] after its step; then
+    /// plastic flow for materials that yield. Sleeping
     /// surfaces are woken first when something acts on them, and still ones put to sleep
     /// last ([`sleep`]).
     Integrate,
@@ -116,6 +119,7 @@ impl Plugin for PointSpringsPlugin {
             .register_type::<SurfaceTimings>()
             .register_type::<SurfaceInView>()
             .register_type::<StepOnce>()
+            .register_type::<SurfaceHealth>()
             .register_type::<GrabSettings>()
             .add_message::<GrabMessage>()
             .add_message::<ModelMessage>()
@@ -152,6 +156,7 @@ impl Plugin for PointSpringsPlugin {
                     (
                         sleep::wake_surfaces,
                         simulate::integrate,
+                        health::watch_health,
                         simulate::plastic_flow,
                         sleep::settle_surfaces,
                     )

@@ -177,6 +177,12 @@ pub(crate) fn integrate(time: Res<Time>, mut surfaces: Query<StepParts>) {
             (mut work, mut timings),
         )| {
             if !running(&status, settings, once) || sleep.asleep {
+                // A paused surface drops what the game added meanwhile, so that it does not
+                // land all at once when the surface runs again (a sleeping one woke
+                // already if anything was added).
+                if status.is_ready() && !forces.is_zero() {
+                    forces.clear();
+                }
                 return;
             }
             let start = Instant::now();

@@ -1,5 +1,6 @@
 //! Failures and the exit codes they map to: 2 for bad input (an unreadable or malformed
-//! file, a bad argument), 1 for any other failure (e.g. the output cannot be written).
+//! file, a bad argument), 3 for a simulation that could not be kept finite, 1 for any other
+//! failure (e.g. the output cannot be written).
 
 use std::fmt::Display;
 use std::process::ExitCode;
@@ -8,6 +9,8 @@ use std::process::ExitCode;
 const EXIT_BAD_INPUT: u8 = 2;
 /// Exit code for other failures.
 const EXIT_FAILURE: u8 = 1;
+/// Exit code for a simulation the guard had to step in for.
+const EXIT_UNSTABLE: u8 = 3;
 
 /// A failure and the exit code it maps to.
 #[derive(Debug)]
@@ -32,6 +35,15 @@ impl Failure {
         Self {
             message: e.to_string(),
             code: EXIT_FAILURE,
+        }
+    }
+
+    /// A simulation that went unstable: the guard restored its state at least once (exit
+    /// code 3).
+    pub fn unstable(e: impl Display) -> Self {
+        Self {
+            message: e.to_string(),
+            code: EXIT_UNSTABLE,
         }
     }
 

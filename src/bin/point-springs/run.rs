@@ -95,6 +95,8 @@ struct RunReport {
     guard_trips: u64,
     /// Steps whose sub-step count hit the cap.
     limited_steps: u64,
+    /// The explicit integrator failed and handed over to implicit Euler.
+    fell_back: bool,
     /// Preparation time, ms.
     ms_prepare: f64,
     /// Simulation time per step, ms.
@@ -136,6 +138,13 @@ impl fmt::Display for RunReport {
             "simulation    {:.3} ms per step ({} sub-steps, {} CG iterations, {} guard trips)",
             self.ms_per_step, self.substeps, self.cg_iterations, self.guard_trips
         )?;
+        if self.fell_back {
+            writeln!(
+                f,
+                "fell back     {} went unstable; implicit-euler took over",
+                self.integrator
+            )?;
+        }
         writeln!(
             f,
             "transfer      {:.2} ms (+ {:.2} ms resampling: {} points added)",
@@ -227,7 +236,16 @@ pub fn run(args: &Args) -> Result<(), Failure> {
         report.snapshots_written = s.written;
         report.snapshot = Some(s.path.display().to_string());
     }
-    args.json.emit(&report)
+    args.json.emit(&report)?;
+    if !report.finite {
+        let last = scene_run.solver().diagnostics().last.instability;
+        return Err(Failure::unstable(format!(
+            "the scene could not be kept finite: the guard restored the state {} times{}",
+            report.guard_trips,
+            last.map_or(String::new(), |why| format!(" (last: {why})"))
+        )));
+    }
+    Ok(())
 }
 
 /// The run, prepared from the scene or resumed from a snapshot, and the scene file (made
@@ -362,6 +380,7 @@ fn report(
         cg_iterations: d.cg_iterations,
         guard_trips: d.guard_trips,
         limited_steps: d.limited_steps,
+        fell_back: d.fell_back,
         ms_prepare: seconds.prepare * 1e3,
         ms_per_step: seconds.simulate * 1e3 / run.step_count().max(1) as f64,
         ms_transfer: seconds.transfer * 1e3,

@@ -77,6 +77,7 @@ impl PreparedSurface {
             dense: &mut self.dense,
         };
         self.network = bake(parts, self.config.material.density)?;
+        self.solver.set_rest_positions(&self.network.positions)?;
         Ok(())
     }
 }

@@ -15,10 +15,12 @@ pub enum Integrator {
     ExplicitEuler,
     /// Semi-implicit Euler: v += a·h, then x += v·h. First order, symplectic: without
     /// damping its energy oscillates but does not grow (below the stable step).
-    #[default]
     SymplecticEuler,
     /// Linearised backward Euler solved by preconditioned conjugate gradient. First order,
-    /// stable at any step; adds numerical damping at large steps.
+    /// stable at any step; adds numerical damping at large steps. The default: a scan's
+    /// network has a stable explicit step set by its lightest point and shortest springs,
+    /// which at 60 Hz often needs hundreds of sub-steps (see `docs/ARCHITECTURE.md`).
+    #[default]
     ImplicitEuler,
 }
 
@@ -105,6 +107,26 @@ impl Default for SubstepPolicy {
     }
 }
 
+/// What a step does when its new state is bad: not finite, beyond
+/// [`STATE_LIMIT`](super::STATE_LIMIT), or a point faster than the runaway speed
+/// ([`SolverConfig::runaway_speed`]). In every case the state from before the step is
+/// restored first (the guard), and the step's [`StepReport::instability`](super::StepReport)
+/// says why.
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, Hash, Default, serde::Serialize, serde::Deserialize,
+)]
+pub enum InstabilityResponse {
+    /// An explicit integrator hands over to implicit Euler for good and takes the step
+    /// again; implicit Euler itself freezes as [`Self::Freeze`] does.
+    #[default]
+    FallBackToImplicit,
+    /// The points stop where they were before the step (velocities zeroed).
+    Freeze,
+    /// The points go back to their rest positions, stopped (a solver without rest positions
+    /// freezes instead).
+    ResetToRest,
+}
+
 /// A solver's settings. In a scene file: `solver: (integrator: ImplicitEuler, drag: 4.0)`,
 /// every field optional.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -128,7 +150,22 @@ pub struct SolverConfig {
     pub cg_max_iterations: u32,
     /// Whether to check the state after each step and restore it when it went bad.
     pub guard: bool,
+    /// What the guard does after it restored a bad state.
+    pub on_instability: InstabilityResponse,
+    /// Speed (any velocity component, units per second) past which a point counts as run
+    /// away and the guard steps in. `None`: [`RUNAWAY_DIAGONALS_PER_SECOND`] rest
+    /// bounding-box diagonals per second, and at least [`RUNAWAY_MIN_SPEED`].
+    pub runaway_speed: Option<f32>,
 }
+
+/// The default runaway speed, in rest bounding-box diagonals per second: a point of a unit
+/// sphere past 346 m/s. Nothing a game does to a surface moves it that fast, and a network
+/// gone unstable passes it within a step or two.
+pub const RUNAWAY_DIAGONALS_PER_SECOND: f32 = 100.0;
+
+/// The default runaway speed is never below this (units per second; a kilometre per second
+/// in metres), so that a small surface may still fall, or be hit by a fast body.
+pub const RUNAWAY_MIN_SPEED: f32 = 1000.0;
 
 impl Default for SolverConfig {
     fn default() -> Self {
@@ -142,6 +179,8 @@ impl Default for SolverConfig {
             cg_tolerance: DEFAULT_CG_TOLERANCE,
             cg_max_iterations: DEFAULT_CG_MAX_ITERATIONS,
             guard: true,
+            on_instability: InstabilityResponse::default(),
+            runaway_speed: None,
         }
     }
 }
@@ -165,6 +204,14 @@ impl SolverConfig {
         if !(self.cg_tolerance > 0.0 && self.cg_tolerance < 1.0) {
             return Err(SolverError::InvalidConfig(
                 "the CG tolerance must be in (0, 1)",
+            ));
+        }
+        if self
+            .runaway_speed
+            .is_some_and(|v| !(v > 0.0 && v.is_finite()))
+        {
+            return Err(SolverError::InvalidConfig(
+                "the runaway speed must be positive and finite",
             ));
         }
         if self.cg_max_iterations == 0 {

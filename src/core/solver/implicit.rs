@@ -11,6 +11,12 @@
 //! Ko 2002). The preconditioner inverts each point's 3×3 diagonal block. Fixed points are
 //! filtered out (their Δv is zero). The solve starts from the previous step's Δv when that
 //! leaves a smaller residual than starting from zero.
+//!
+//! Gas pressure enters through its stiffness along the volume's gradient g: the force's
+//! Jacobian −c·ggᵀ (c = κ·V₀/V², see `Pressure::linearised`) is a dense but rank-one term,
+//! kept as g and h²c beside the sparse blocks and applied as h²c·g(g·p) in each product; its
+//! diagonal blocks join the preconditioner. The pressure times the volume's Hessian is
+//! indefinite and left out (Gauss–Newton), so the matrix stays positive definite.
 
 use glam::{DMat3, DVec3};
 
@@ -125,6 +131,8 @@ pub(crate) struct Scratch {
     diag: Vec<Sym3>,
     diag_inv: Vec<Sym3>,
     blocks: Vec<Sym3>,
+    /// The volume's gradient at each point, for the gas's rank-one term.
+    gas: Vec<DVec3>,
 }
 
 impl Scratch {
@@ -171,27 +179,40 @@ fn dot(a: &[DVec3], b: &[DVec3]) -> f64 {
     a.iter().zip(b).map(|(x, y)| x.dot(*y)).sum()
 }
 
-/// y = A·p (fixed rows zero).
-fn apply(
-    diag: &[Sym3],
-    blocks: &[Sym3],
-    a_end: &[u32],
-    b_end: &[u32],
-    fixed: &[bool],
-    p: &[DVec3],
-    y: &mut [DVec3],
-) {
-    for i in 0..p.len() {
-        y[i] = diag[i].mul(p[i]);
-    }
-    for (s, c) in blocks.iter().enumerate() {
-        let (a, b) = (a_end[s] as usize, b_end[s] as usize);
-        y[a] -= c.mul(p[b]);
-        y[b] -= c.mul(p[a]);
-    }
-    for (yi, &f) in y.iter_mut().zip(fixed) {
-        if f {
-            *yi = DVec3::ZERO;
+/// The system's matrix: diagonal blocks, one off-diagonal block per spring, and the gas's
+/// rank-one term `scale`·ggᵀ (scale 0 without gas).
+struct System<'a> {
+    diag: &'a [Sym3],
+    blocks: &'a [Sym3],
+    a_end: &'a [u32],
+    b_end: &'a [u32],
+    fixed: &'a [bool],
+    gas: &'a [DVec3],
+    gas_scale: f64,
+}
+
+impl System<'_> {
+    /// y = A·p (fixed rows zero).
+    fn apply(&self, p: &[DVec3], y: &mut [DVec3]) {
+        for i in 0..p.len() {
+            y[i] = self.diag[i].mul(p[i]);
+        }
+        for (s, c) in self.blocks.iter().enumerate() {
+            let (a, b) = (self.a_end[s] as usize, self.b_end[s] as usize);
+            y[a] -= c.mul(p[b]);
+            y[b] -= c.mul(p[a]);
+        }
+        if self.gas_scale > 0.0 {
+            // p is zero at fixed points, so g·p sums the free ones.
+            let along = self.gas_scale * dot(self.gas, p);
+            for (yi, g) in y.iter_mut().zip(self.gas) {
+                *yi += along * *g;
+            }
+        }
+        for (yi, &f) in y.iter_mut().zip(self.fixed) {
+            if f {
+                *yi = DVec3::ZERO;
+            }
         }
     }
 }
@@ -263,6 +284,27 @@ impl Stepper {
             scratch.rhs[a] += kdv;
             scratch.rhs[b] -= kdv;
         }
+        // The gas: h²c·ggᵀ in the matrix (its diagonal blocks in the preconditioner too), and
+        // its part of h²·∂f/∂x·v₀ on the right-hand side.
+        let gas_scale = match model.pressure {
+            Some(gas) => h2 * gas.linearised(points, &mut scratch.gas),
+            None => {
+                scratch.gas.clear();
+                scratch.gas.resize(n, DVec3::ZERO);
+                0.0
+            }
+        };
+        if gas_scale > 0.0 {
+            let rate: f64 = (0..n)
+                .filter(|&i| !fixed[i])
+                .map(|i| scratch.gas[i].dot(vel(i)))
+                .sum();
+            for i in 0..n {
+                let g = scratch.gas[i];
+                scratch.rhs[i] -= gas_scale * rate * g;
+                scratch.diag[i] = scratch.diag[i].add(Sym3::outer_plus_identity(g, gas_scale, 0.0));
+            }
+        }
         for (i, &fixed) in fixed.iter().enumerate() {
             if fixed {
                 scratch.rhs[i] = DVec3::ZERO;
@@ -273,7 +315,7 @@ impl Stepper {
             }
         }
 
-        let outcome = conjugate_gradient(&config, layout, &mut scratch, &fixed);
+        let outcome = conjugate_gradient(&config, layout, &mut scratch, &fixed, gas_scale);
 
         for (i, dv) in scratch.dv.iter().enumerate() {
             if fixed[i] {
@@ -298,8 +340,8 @@ fn conjugate_gradient(
     layout: &SpringLayout,
     s: &mut Scratch,
     fixed: &[bool],
+    gas_scale: f64,
 ) -> CgOutcome {
-    let (a_end, b_end) = (&layout.a, &layout.b);
     let b_norm = dot(&s.rhs, &s.rhs).sqrt();
     if b_norm == 0.0 || !b_norm.is_finite() {
         s.reset_warm_start();
@@ -309,8 +351,51 @@ fn conjugate_gradient(
         };
     }
     let tolerance = f64::from(config.cg_tolerance) * b_norm;
+    let gas = std::mem::take(&mut s.gas);
+    let outcome = solve(config, layout, s, fixed, &gas, gas_scale, tolerance, b_norm);
+    s.gas = gas;
+    outcome
+}
+
+/// The iterations of [`conjugate_gradient`] (gas gradient taken out of the scratch).
+#[allow(clippy::too_many_arguments)]
+fn solve(
+    config: &SolverConfig,
+    layout: &SpringLayout,
+    s: &mut Scratch,
+    fixed: &[bool],
+    gas: &[DVec3],
+    gas_scale: f64,
+    tolerance: f64,
+    b_norm: f64,
+) -> CgOutcome {
+    let diag = std::mem::take(&mut s.diag);
+    let blocks = std::mem::take(&mut s.blocks);
+    let system = System {
+        diag: &diag,
+        blocks: &blocks,
+        a_end: &layout.a,
+        b_end: &layout.b,
+        fixed,
+        gas,
+        gas_scale,
+    };
+    let outcome = iterate(config, &system, s, tolerance, b_norm);
+    s.diag = diag;
+    s.blocks = blocks;
+    outcome
+}
+
+/// Preconditioned conjugate gradient on `system` from the warm start in `s.dv`.
+fn iterate(
+    config: &SolverConfig,
+    system: &System<'_>,
+    s: &mut Scratch,
+    tolerance: f64,
+    b_norm: f64,
+) -> CgOutcome {
     // r = b − A·dv from the warm start; keep it only if it beats starting from zero.
-    apply(&s.diag, &s.blocks, a_end, b_end, fixed, &s.dv, &mut s.q);
+    system.apply(&s.dv, &mut s.q);
     for i in 0..s.r.len() {
         s.r[i] = s.rhs[i] - s.q[i];
     }
@@ -327,7 +412,7 @@ fn conjugate_gradient(
     let mut iterations = 0;
     let mut converged = dot(&s.r, &s.r).sqrt() <= tolerance;
     while !converged && iterations < config.cg_max_iterations {
-        apply(&s.diag, &s.blocks, a_end, b_end, fixed, &s.p, &mut s.q);
+        system.apply(&s.p, &mut s.q);
         let pq = dot(&s.p, &s.q);
         let descends = pq > 0.0;
         if !descends {

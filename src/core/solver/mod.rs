@@ -86,12 +86,13 @@ use glam::Vec3;
 use crate::core::network::SpringNetwork;
 
 pub use config::{
-    DEFAULT_YIELD_STRAIN, DampingModel, Integrator, MaterialUnits, Plasticity,
-    SHEET_LATTICE_FACTOR, SolverConfig, SpringMaterial, SubstepPolicy, UnknownIntegrator,
+    DEFAULT_YIELD_STRAIN, DampingModel, InstabilityResponse, Integrator, MaterialUnits, Plasticity,
+    RUNAWAY_DIAGONALS_PER_SECOND, RUNAWAY_MIN_SPEED, SHEET_LATTICE_FACTOR, SolverConfig,
+    SpringMaterial, SubstepPolicy, UnknownIntegrator,
 };
 use parts::non_negative;
 pub use parts::{Anchors, ExternalForces, Masses, PointState, Pressure, Springs, hold_still};
-pub use report::{Diagnostics, Energy, SolverError, Stability, StepReport};
+pub use report::{Diagnostics, Energy, Instability, SolverError, Stability, StepReport};
 pub use springs::{COINCIDENT_DISTANCE, SpringSpec};
 pub use state::SolverState;
 pub use stepper::{Model, Stepper};
@@ -119,6 +120,19 @@ pub const MAX_POINTS: usize = u32::MAX as usize;
 
 /// Standard gravity, m/s², along −Y (Bevy's up is +Y).
 pub const STANDARD_GRAVITY: Vec3 = Vec3::new(0.0, -9.81, 0.0);
+
+/// The diagonal of the bounding box of `positions` (0 for none).
+pub(crate) fn rest_diagonal(positions: &[Vec3]) -> f32 {
+    let (lo, hi) = positions.iter().fold(
+        (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
+        |(lo, hi), p| (lo.min(*p), hi.max(*p)),
+    );
+    if positions.is_empty() {
+        0.0
+    } else {
+        (hi - lo).length()
+    }
+}
 
 /// A spring from a point to a world position (eq 5): F = k·(target − x) − k_d·v. Pins, pokes
 /// and drags are anchors; move a drag with [`Solver::set_anchor_target`].
@@ -161,6 +175,8 @@ pub struct Solver {
     pub pressure: Option<Pressure>,
     /// Settings, force buffers and running totals.
     pub stepper: Stepper,
+    /// Where the points rest ([`InstabilityResponse::ResetToRest`] puts them back there).
+    rest: Vec<Vec3>,
 }
 
 impl Solver {
@@ -181,16 +197,38 @@ impl Solver {
         if n > MAX_POINTS {
             return Err(SolverError::TooManyPoints(n));
         }
-        let stepper = Stepper::new(config, n)?;
+        let mut stepper = Stepper::new(config, n)?;
+        let points = PointState::new(positions)?;
+        stepper.set_rest_diagonal(rest_diagonal(positions));
         Ok(Self {
-            points: PointState::new(positions)?,
+            points,
             masses: Masses::new(masses)?,
             springs: Springs::new(springs, n)?,
             anchors: Anchors::default(),
             external: ExternalForces::zeros(n),
             pressure: None,
             stepper,
+            rest: positions.to_vec(),
         })
+    }
+
+    /// Where the points rest (their positions when the solver was made, or the last bake's).
+    pub fn rest_positions(&self) -> &[Vec3] {
+        &self.rest
+    }
+
+    /// Makes `positions` the rest positions (one per point) that
+    /// [`InstabilityResponse::ResetToRest`] returns to.
+    pub fn set_rest_positions(&mut self, positions: &[Vec3]) -> Result<(), SolverError> {
+        if positions.len() != self.len() {
+            return Err(SolverError::PointCountMismatch {
+                what: "rest positions",
+                expected: self.len(),
+                found: positions.len(),
+            });
+        }
+        self.rest = positions.to_vec();
+        Ok(())
     }
 
     /// A solver over a [`SpringNetwork`]: its rest positions and masses, stretch and bend
@@ -217,6 +255,7 @@ impl Solver {
             springs: &self.springs,
             anchors: &self.anchors,
             pressure: self.pressure.as_ref(),
+            rest: Some(&self.rest),
         }
     }
 
@@ -383,6 +422,7 @@ impl Solver {
             springs: &self.springs,
             anchors: &self.anchors,
             pressure: self.pressure.as_ref(),
+            rest: Some(&self.rest),
         };
         self.stepper.stability(model)
     }
@@ -395,6 +435,7 @@ impl Solver {
             springs: &self.springs,
             anchors: &self.anchors,
             pressure: self.pressure.as_ref(),
+            rest: Some(&self.rest),
         };
         self.stepper.accumulate_forces(&self.points, model)?;
         let mut report = self

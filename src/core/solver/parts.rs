@@ -106,9 +106,18 @@ impl Soa3 {
     /// Components that are not finite or exceed [`STATE_LIMIT`] (counting keeps the loop
     /// branch-free, so it vectorises).
     pub fn count_insane(&self) -> usize {
+        self.count_beyond(STATE_LIMIT)
+    }
+
+    /// Components that are not finite or whose magnitude passes `limit`.
+    pub fn count_beyond(&self, limit: f32) -> usize {
         [&self.x, &self.y, &self.z]
             .iter()
-            .map(|c| c.iter().map(|&v| usize::from(!sane(v))).sum::<usize>())
+            .map(|c| {
+                c.iter()
+                    .map(|&v| usize::from(!within(v, limit)))
+                    .sum::<usize>()
+            })
             .sum()
     }
 }
@@ -116,7 +125,13 @@ impl Soa3 {
 /// Whether a state component is finite and within [`STATE_LIMIT`] (false for NaN).
 #[inline(always)]
 pub(crate) fn sane(v: f32) -> bool {
-    v.abs() <= STATE_LIMIT
+    within(v, STATE_LIMIT)
+}
+
+/// Whether `v` is finite and its magnitude at most `limit` (false for NaN).
+#[inline(always)]
+pub(crate) fn within(v: f32, limit: f32) -> bool {
+    v.abs() <= limit
 }
 
 /// The points' positions and velocities (each stored as three coordinate arrays).

@@ -114,6 +114,36 @@ pub enum SolverError {
     },
 }
 
+/// Why a step's new state was refused (the guard restored the state from before it), or
+/// why a step ran above its stable step.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
+pub enum Instability {
+    /// A coordinate or velocity became non-finite or passed [`STATE_LIMIT`].
+    NonFinite,
+    /// A point went faster than the runaway speed ([`SolverConfig::runaway_speed`]).
+    Runaway,
+    /// An explicit step needed more sub-steps than [`SubstepPolicy::Auto`] allows, so it ran
+    /// above its stable step (the state may still be finite).
+    SubstepLimit,
+}
+
+impl Instability {
+    /// What it means, in a few words.
+    pub fn describe(self) -> &'static str {
+        match self {
+            Self::NonFinite => "the state became non-finite",
+            Self::Runaway => "a point ran away (faster than the runaway speed)",
+            Self::SubstepLimit => "the step needed more sub-steps than allowed",
+        }
+    }
+}
+
+impl std::fmt::Display for Instability {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.describe())
+    }
+}
+
 /// What one [`Solver::step`] did.
 #[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize, serde::Deserialize)]
 pub struct StepReport {
@@ -135,6 +165,12 @@ pub struct StepReport {
     /// Springs whose rest length crept after the step (plastic flow; 0 for an elastic
     /// material or a step taken through [`Stepper::advance`](super::Stepper::advance) alone).
     pub flowed_springs: usize,
+    /// What went wrong, if anything: the guard's reason when it restored the state
+    /// ([`Self::recovered`]), else [`Instability::SubstepLimit`] when [`Self::limited`].
+    pub instability: Option<Instability>,
+    /// The step was taken again with implicit Euler after the explicit one failed
+    /// ([`InstabilityResponse::FallBackToImplicit`]); every later step is implicit too.
+    pub fell_back: bool,
 }
 
 /// Running totals over a solver's life.
@@ -156,6 +192,9 @@ pub struct Diagnostics {
     pub time: f64,
     /// The last step's report.
     pub last: StepReport,
+    /// An explicit integrator failed and handed over to implicit Euler: every step since
+    /// is implicit ([`InstabilityResponse::FallBackToImplicit`]).
+    pub fell_back: bool,
 }
 
 /// Energies of the current state (f64 sums).
@@ -197,6 +236,31 @@ pub struct Stability {
 }
 
 impl Stability {
+    /// The estimate with `omega2` more squared angular frequency (1/s²), such as a gas's
+    /// (the largest eigenvalues add up at most: Weyl), and the same damping; `drag` is the
+    /// solver's drag rate μ.
+    pub fn with_stiffness(&self, omega2: f64, drag: f64) -> Self {
+        if omega2.is_nan() || omega2 <= 0.0 {
+            return *self;
+        }
+        let w2 = f64::from(self.omega2_max) + omega2;
+        let gamma = f64::from(self.gamma_max);
+        let ratio = f64::from(self.damping_ratio_min);
+        let symplectic = 4.0 / (gamma + (gamma * gamma + 4.0 * w2).sqrt());
+        let oscillation = ratio.min(f64::MAX) + drag / w2;
+        let overdamping = if gamma > 0.0 {
+            2.0 / gamma
+        } else {
+            f64::INFINITY
+        };
+        Self {
+            omega2_max: w2 as f32,
+            symplectic_dt: symplectic as f32,
+            explicit_dt: oscillation.min(overdamping) as f32,
+            ..*self
+        }
+    }
+
     /// The stable step of `integrator` (∞ for implicit Euler).
     pub fn dt(&self, integrator: Integrator) -> f32 {
         match integrator {

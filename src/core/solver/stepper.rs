@@ -13,10 +13,13 @@
 use glam::Vec3;
 
 use super::implicit;
-use super::parts::{Anchors, ExternalForces, Masses, PointState, Pressure, Soa3, Springs, sane};
+use super::parts::{
+    Anchors, ExternalForces, Masses, PointState, Pressure, Soa3, Springs, sane, within,
+};
 use super::{
-    DampingModel, Diagnostics, Energy, Integrator, SolverConfig, SolverError, Stability,
-    StepReport, SubstepPolicy,
+    DampingModel, Diagnostics, Energy, Instability, InstabilityResponse, Integrator,
+    RUNAWAY_DIAGONALS_PER_SECOND, RUNAWAY_MIN_SPEED, STATE_LIMIT, SolverConfig, SolverError,
+    Stability, StepReport, SubstepPolicy,
 };
 
 /// The parts of a surface a step reads but does not change.
@@ -28,9 +31,11 @@ pub struct Model<'a> {
     pub springs: &'a Springs,
     /// Anchor springs.
     pub anchors: &'a Anchors,
-    /// Gas inside a closed surface, if any (its stiffness is not part of the stable-step
-    /// estimate: keep it well below the springs').
+    /// Gas inside a closed surface, if any.
     pub pressure: Option<&'a Pressure>,
+    /// The points' rest positions, for [`InstabilityResponse::ResetToRest`] (without them
+    /// that response freezes).
+    pub rest: Option<&'a [Vec3]>,
 }
 
 impl Model<'_> {
@@ -68,6 +73,8 @@ pub struct Stepper {
     /// The stability estimate and the revisions of the parts it was made for.
     stability: Option<(Stability, [u64; 3])>,
     diagnostics: Diagnostics,
+    /// The rest bounding box's diagonal, the unit of the default runaway speed (∞: none).
+    rest_diagonal: f32,
 }
 
 impl Stepper {
@@ -80,8 +87,37 @@ impl Stepper {
             fb: Soa3::zeros(points),
             spare_x: Soa3::zeros(points),
             spare_v: Soa3::zeros(points),
+            rest_diagonal: f32::INFINITY,
             ..Self::default()
         })
+    }
+
+    /// Sets the size the default runaway speed is measured in: the diagonal of the points'
+    /// bounding box at rest.
+    pub(crate) fn set_rest_diagonal(&mut self, diagonal: f32) {
+        self.rest_diagonal = if diagonal > 0.0 && diagonal.is_finite() {
+            diagonal
+        } else {
+            f32::INFINITY
+        };
+    }
+
+    /// The speed (any velocity component) past which a point counts as run away.
+    pub fn runaway_speed(&self) -> f32 {
+        self.config
+            .runaway_speed
+            .unwrap_or((RUNAWAY_DIAGONALS_PER_SECOND * self.rest_diagonal).max(RUNAWAY_MIN_SPEED))
+            .min(STATE_LIMIT)
+    }
+
+    /// The integrator the next step uses: the configured one, or implicit Euler after a
+    /// fall-back ([`InstabilityResponse::FallBackToImplicit`]).
+    pub fn integrator(&self) -> Integrator {
+        if self.diagnostics.fell_back {
+            Integrator::ImplicitEuler
+        } else {
+            self.config.integrator
+        }
     }
 
     /// The settings.
@@ -94,6 +130,8 @@ impl Stepper {
         config.validate()?;
         if config.integrator != self.config.integrator {
             self.implicit = implicit::Scratch::default();
+            // A new choice of integrator starts over from a fall-back.
+            self.diagnostics.fell_back = false;
         }
         self.config = config;
         self.stability = None;
@@ -128,6 +166,19 @@ impl Stepper {
                 self.stability = Some((s, revisions));
                 s
             }
+        }
+    }
+
+    /// The stable-step estimate at `points`: [`Self::stability`] with a gas's stiffness at
+    /// the current volume added ([`Pressure::stiffness_bound`]).
+    pub fn stability_at(&mut self, points: &PointState, model: Model<'_>) -> Stability {
+        let springs = self.stability(model);
+        match model.pressure {
+            Some(gas) => springs.with_stiffness(
+                gas.stiffness_bound(points, model.masses),
+                f64::from(self.config.drag),
+            ),
+            None => springs,
         }
     }
 
@@ -209,13 +260,18 @@ impl Stepper {
         }
     }
 
-    /// Sub-steps for a step of `dt` under the current policy.
-    fn plan(&mut self, model: Model<'_>, dt: f32) -> Result<(u32, bool), SolverError> {
-        let integrator = self.config.integrator;
+    /// Sub-steps for a step of `dt` of `integrator` under the current policy.
+    fn plan(
+        &mut self,
+        points: &PointState,
+        model: Model<'_>,
+        integrator: Integrator,
+        dt: f32,
+    ) -> Result<(u32, bool), SolverError> {
         if !integrator.is_explicit() || self.config.substeps == SubstepPolicy::Unchecked {
             return Ok((1, false));
         }
-        let stable = self.stability(model).dt(integrator) * self.config.stability_margin;
+        let stable = self.stability_at(points, model).dt(integrator) * self.config.stability_margin;
         if dt <= stable {
             return Ok((1, false));
         }
@@ -270,8 +326,110 @@ impl Stepper {
             self.diagnostics.last = report;
             return Ok(report);
         }
-        let (substeps, limited) = self.plan(model, dt)?;
-        let integrator = self.config.integrator;
+        let falls_back = self.config.on_instability == InstabilityResponse::FallBackToImplicit;
+        let integrator = self.integrator();
+        let auto = matches!(self.config.substeps, SubstepPolicy::Auto { .. });
+        let mut planned = match self.plan(points, model, integrator, dt) {
+            // No explicit step is stable (explicit Euler without damping): fall back.
+            Err(SolverError::StepTooLarge { .. }) if falls_back && auto => (1, true),
+            other => other?,
+        };
+        let mut report = if planned.1 && falls_back {
+            // Beyond the sub-step cap the explicit step would run above its stable step:
+            // hand over to implicit Euler before wasting the sub-steps.
+            planned = (1, false);
+            self.fall_back();
+            StepReport {
+                fell_back: true,
+                instability: Some(Instability::SubstepLimit),
+                ..self.take_step(
+                    points,
+                    model,
+                    external,
+                    dt,
+                    Integrator::ImplicitEuler,
+                    planned,
+                    fresh,
+                )
+            }
+        } else {
+            self.take_step(points, model, external, dt, integrator, planned, fresh)
+        };
+        if report.recovered && integrator.is_explicit() && falls_back && !report.fell_back {
+            // The explicit step went bad: take it again, implicitly, from the restored state.
+            let first = report.instability;
+            self.fall_back();
+            planned = (1, false);
+            let again = self.take_step(
+                points,
+                model,
+                external,
+                dt,
+                Integrator::ImplicitEuler,
+                planned,
+                false,
+            );
+            report = StepReport {
+                fell_back: true,
+                instability: again.instability.or(first),
+                substeps: report.substeps + again.substeps,
+                ..again
+            };
+        }
+        if report.recovered {
+            self.respond(points, model);
+        }
+        let d = &mut self.diagnostics;
+        d.steps += 1;
+        d.substeps += u64::from(report.substeps);
+        d.limited_steps += u64::from(report.limited);
+        d.cg_iterations += u64::from(report.cg_iterations);
+        d.cg_unconverged += u64::from(!report.cg_converged);
+        d.guard_trips += u64::from(report.recovered);
+        d.time += f64::from(dt);
+        d.last = report;
+        Ok(report)
+    }
+
+    /// From now on every step is implicit.
+    fn fall_back(&mut self) {
+        if !self.diagnostics.fell_back {
+            self.diagnostics.fell_back = true;
+            self.implicit = implicit::Scratch::default();
+        }
+    }
+
+    /// After the guard restored the state: the points stop there, or at rest
+    /// ([`InstabilityResponse`]).
+    fn respond(&mut self, points: &mut PointState, model: Model<'_>) {
+        let rest = model
+            .rest
+            .filter(|r| r.len() == points.len())
+            .filter(|_| self.config.on_instability == InstabilityResponse::ResetToRest);
+        for i in 0..points.len() {
+            if model.masses.is_pinned(i) {
+                continue;
+            }
+            if let Some(rest) = rest {
+                points.x.set(i, rest[i]);
+            }
+            points.v.set(i, Vec3::ZERO);
+        }
+        self.implicit.reset_warm_start();
+    }
+
+    /// One step of `integrator` in the `planned` sub-steps, guarded.
+    #[allow(clippy::too_many_arguments)]
+    fn take_step(
+        &mut self,
+        points: &mut PointState,
+        model: Model<'_>,
+        external: &ExternalForces,
+        dt: f32,
+        integrator: Integrator,
+        (substeps, limited): (u32, bool),
+        fresh: bool,
+    ) -> StepReport {
         // The guard's way back: an explicit single step writes the new state beside the old
         // one and swaps, so the old state is still there (no copy); anything else copies.
         let swap_restores = integrator.is_explicit() && substeps == 1;
@@ -283,11 +441,13 @@ impl Stepper {
             v.copy_from(&points.v);
         }
         let h = dt / substeps as f32;
+        let speed = self.runaway_speed();
         let mut report = StepReport {
             substeps,
             substep_dt: h,
             limited,
             cg_converged: true,
+            instability: limited.then_some(Instability::SubstepLimit),
             ..StepReport::default()
         };
         let mut insane = 0;
@@ -297,17 +457,32 @@ impl Stepper {
             }
             self.add_external(external);
             insane = match integrator {
-                Integrator::ExplicitEuler => self.integrate::<false>(points, model.masses, h),
-                Integrator::SymplecticEuler => self.integrate::<true>(points, model.masses, h),
+                Integrator::ExplicitEuler => {
+                    self.integrate::<false>(points, model.masses, h, speed)
+                }
+                Integrator::SymplecticEuler => {
+                    self.integrate::<true>(points, model.masses, h, speed)
+                }
                 Integrator::ImplicitEuler => {
                     let cg = self.implicit_step(points, model, h);
                     report.cg_iterations += cg.iterations;
                     report.cg_converged &= cg.converged;
-                    points.x.count_insane() + points.v.count_insane()
+                    points.x.count_insane() + points.v.count_beyond(speed)
                 }
             };
+            if insane > 0 {
+                break;
+            }
         }
         report.finite = insane == 0;
+        if !report.finite {
+            let non_finite = points.x.count_insane() + points.v.count_insane() > 0;
+            report.instability = Some(if non_finite {
+                Instability::NonFinite
+            } else {
+                Instability::Runaway
+            });
+        }
         if !report.finite && self.config.guard {
             if swap_restores {
                 std::mem::swap(&mut points.x, &mut self.spare_x);
@@ -320,16 +495,7 @@ impl Stepper {
             report.recovered = true;
             report.finite = true;
         }
-        let d = &mut self.diagnostics;
-        d.steps += 1;
-        d.substeps += u64::from(substeps);
-        d.limited_steps += u64::from(limited);
-        d.cg_iterations += u64::from(report.cg_iterations);
-        d.cg_unconverged += u64::from(!report.cg_converged);
-        d.guard_trips += u64::from(report.recovered);
-        d.time += f64::from(dt);
-        d.last = report;
-        Ok(report)
+        report
     }
 
     /// One explicit step of length `h` from the forces in `fa` and `fb`: symplectic Euler
@@ -341,6 +507,7 @@ impl Stepper {
         points: &mut PointState,
         masses: &Masses,
         h: f32,
+        speed: f32,
     ) -> usize {
         let inv = &masses.inv_mass;
         let mut insane = 0;
@@ -378,6 +545,7 @@ impl Stepper {
                 fb,
                 inv,
                 h,
+                speed,
                 x_out,
                 v_out,
             });
@@ -489,6 +657,7 @@ struct IntegrateAxis<'a, const SYMPLECTIC: bool> {
     fb: &'a [f32],
     inv: &'a [f32],
     h: f32,
+    speed: f32,
     x_out: &'a mut [f32],
     v_out: &'a mut [f32],
 }
@@ -499,13 +668,14 @@ impl<const SYMPLECTIC: bool> pulp::WithSimd for IntegrateAxis<'_, SYMPLECTIC> {
     #[inline(always)]
     fn with_simd<S: pulp::Simd>(self, _simd: S) -> u32 {
         integrate_axis::<SYMPLECTIC>(
-            self.x, self.v, self.fa, self.fb, self.inv, self.h, self.x_out, self.v_out,
+            self.x, self.v, self.fa, self.fb, self.inv, self.h, self.speed, self.x_out, self.v_out,
         )
     }
 }
 
 /// One axis of an explicit step (see [`Stepper::integrate`]); counts new components that
-/// are not finite or beyond the state limit (branch-free, so the loop vectorises).
+/// are not finite, positions beyond the state limit and velocities beyond `speed`
+/// (branch-free, so the loop vectorises).
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
 fn integrate_axis<const SYMPLECTIC: bool>(
@@ -515,6 +685,7 @@ fn integrate_axis<const SYMPLECTIC: bool>(
     fb: &[f32],
     inv: &[f32],
     h: f32,
+    speed: f32,
     x_out: &mut [f32],
     v_out: &mut [f32],
 ) -> u32 {
@@ -528,7 +699,7 @@ fn integrate_axis<const SYMPLECTIC: bool>(
         let xn = x[i] + if SYMPLECTIC { vn } else { v[i] } * h;
         v_out[i] = vn;
         x_out[i] = xn;
-        insane += u32::from(!sane(xn)) + u32::from(!sane(vn));
+        insane += u32::from(!sane(xn)) + u32::from(!within(vn, speed));
     }
     insane
 }

@@ -55,9 +55,15 @@ impl RigidSide<'_> {
                     .or_insert_with(|| body_state(b, gravity, dt)),
                 _ => BodyState::immovable(Vec3::ZERO, Vec3::ZERO, center),
             };
+            // A proximity measured from a bad state (a surface the guard had to stop) takes
+            // no part: nothing non-finite reaches rapier.
+            proximities.retain(|p| p.velocity.is_finite() && p.gap.is_finite());
             let Ok(impulses) = resolve(&mut state, &mut proximities, dt, params) else {
                 continue;
             };
+            if impulses.iter().any(|c| !c.impulse.is_finite()) {
+                continue;
+            }
             if let (Some(h), Some(rigid)) = (handle, handle.and_then(|h| rigid_bodies.get_mut(h))) {
                 states.insert(h, state);
                 if rigid.is_dynamic() {

@@ -4,6 +4,8 @@
 
 mod cloth;
 mod convergence;
+#[cfg(feature = "plugin")]
+mod crowd;
 mod network;
 #[cfg(feature = "plugin")]
 mod plugin;
@@ -44,6 +46,11 @@ enum Case {
     /// --dense points, --sim simulation points) in a cup with a sustained poke.
     #[cfg(feature = "plugin")]
     Plugin(plugin::Args),
+    /// A crowd of small surfaces in the plugin at default settings: --surfaces gas-filled
+    /// spheres (of --dense points simplified to --sim), falling under gravity and poked;
+    /// milliseconds per tick for all of them, with sub-steps, CG iterations and guard trips.
+    #[cfg(feature = "plugin")]
+    Crowd(crowd::Args),
     /// Whether the spring network is watertight: each cloud simplified to several fractions
     /// of its points, with the network's closedness, Euler characteristic, boundary loops,
     /// fold-overs, crossings and the time of each stage (a Markdown table, or JSON).
@@ -75,6 +82,8 @@ pub fn run(args: Args) -> Result<(), Failure> {
         Case::Transfer(args) => transfer::run(&args),
         #[cfg(feature = "plugin")]
         Case::Plugin(args) => plugin::run(&args),
+        #[cfg(feature = "plugin")]
+        Case::Crowd(args) => crowd::run(&args),
         Case::Network(args) => network::run(&args),
         Case::Table1(args) => table1::run(&args),
         Case::Scale(args) => scale::run(&args),

@@ -144,15 +144,15 @@ impl Report for PluginReport {}
 
 /// Marker times of the current tick, and the sums over timed ticks.
 #[derive(Resource, Default)]
-struct Clock {
+pub(super) struct Clock {
     /// When each marker system ran this tick.
     marks: [Option<Instant>; 4],
     /// Seconds of forces, stepping and transfer, summed over the timed ticks.
-    sums: [f64; 3],
+    pub(super) sums: [f64; 3],
     /// Ticks timed.
-    timed: usize,
+    pub(super) timed: usize,
     /// Whether ticks are being timed.
-    timing: bool,
+    pub(super) timing: bool,
 }
 
 /// Marker system `I` (0 to 3): notes the time; the last adds up the tick.
@@ -170,7 +170,7 @@ fn mark<const I: usize>(mut clock: ResMut<Clock>) {
 }
 
 /// A headless app with the plugin, ticking `dt` per update, and the marker systems.
-fn ecs_app(dt: f32, single_threaded: bool) -> App {
+pub(super) fn ecs_app(dt: f32, single_threaded: bool) -> App {
     let tick = Duration::from_secs_f64(f64::from(dt));
     let mut app = App::new();
     app.add_plugins((MinimalPlugins, PointSpringsPlugin::default()))

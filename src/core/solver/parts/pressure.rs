@@ -1,6 +1,6 @@
 //! Gas pressure inside a closed surface: the force that pushes a poked sphere back out.
 
-use glam::Vec3;
+use glam::{DVec3, Vec3};
 
 use super::*;
 
@@ -101,6 +101,71 @@ impl Pressure {
                 f.set(i, f.get(i) + share);
             }
         }
+    }
+
+    /// The linearised gas for an implicit step: writes the enclosed volume's gradient at
+    /// each point (the area-vector form of [`Self::accumulate`], a third of each triangle's
+    /// area vector to each corner) into `grad` and returns c = −dΔP/dV = κ·V₀/V², so that
+    /// the force's Jacobian is −c·ggᵀ plus ΔP times the volume's Hessian (indefinite, left
+    /// out to keep the step's matrix positive definite).
+    pub(crate) fn linearised(&self, points: &PointState, grad: &mut Vec<DVec3>) -> f64 {
+        grad.clear();
+        grad.resize(points.len(), DVec3::ZERO);
+        if self.stiffness == 0.0 {
+            return 0.0;
+        }
+        for &[a, b, c] in &self.triangles {
+            let (a, b, c) = (a as usize, b as usize, c as usize);
+            let (xa, xb, xc) = (
+                points.position(a).as_dvec3(),
+                points.position(b).as_dvec3(),
+                points.position(c).as_dvec3(),
+            );
+            let share = (xb - xa).cross(xc - xa) / 6.0;
+            for i in [a, b, c] {
+                grad[i] += share;
+            }
+        }
+        let v = self.volume(points).max(self.rest_volume * 1e-3);
+        f64::from(self.stiffness) * self.rest_volume / (v * v)
+    }
+
+    /// An upper bound on the gas's contribution to the largest squared angular frequency
+    /// (1/s²) at `points` with `masses`: c·Σᵢ|gᵢ|²/mᵢ, the rank-one term's one eigenvalue
+    /// (see [`Self::linearised`]), plus |ΔP| times a Gershgorin bound of the volume's Hessian
+    /// (each triangle's longest edge over 3, per corner, over the corner's mass). Free
+    /// points only.
+    pub fn stiffness_bound(&self, points: &PointState, masses: &Masses) -> f64 {
+        if self.stiffness == 0.0 || points.is_empty() {
+            return 0.0;
+        }
+        let mut grad = Vec::new();
+        let c = self.linearised(points, &mut grad);
+        let free = |i: usize| !masses.is_pinned(i);
+        let inv = |i: usize| 1.0 / f64::from(masses.mass(i));
+        let rank_one: f64 = (0..points.len())
+            .filter(|&i| free(i))
+            .map(|i| grad[i].length_squared() * inv(i))
+            .sum::<f64>()
+            * c;
+        let mut row = vec![0.0f64; points.len()];
+        for &[a, b, c] in &self.triangles {
+            let (a, b, c) = (a as usize, b as usize, c as usize);
+            let p = |i: usize| points.position(i).as_dvec3();
+            let longest = (p(b) - p(a))
+                .length()
+                .max((p(c) - p(b)).length())
+                .max((p(a) - p(c)).length());
+            for i in [a, b, c] {
+                row[i] += longest / 3.0;
+            }
+        }
+        let hessian = (0..points.len())
+            .filter(|&i| free(i))
+            .map(|i| row[i] * inv(i))
+            .fold(0.0, f64::max)
+            * self.over_pressure(points).abs();
+        rank_one + hessian
     }
 
     /// The gas's potential energy at `points`: κ·(V − V₀) − κ·V₀·ln(V/V₀).
