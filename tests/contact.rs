@@ -404,7 +404,9 @@ fn a_surface_made_to_diverge_says_so_once_and_hands_rapier_nothing_bad() {
     // Two hats side by side, a ball dropped on each. The left one is made to diverge:
     // symplectic Euler, sub-steps off, springs 10^4 times stiffer, frozen when the guard
     // steps in. It must say so (health, one event), never give its ball a non-finite or
-    // absurd impulse, and still hold its ball up; the right one runs on as if alone.
+    // absurd impulse, and still hold its ball up; the right one runs on as if alone. The
+    // balls weigh half a kilogram (the issue's).
+    const BALL_DENSITY: f32 = 35.0;
     let mut app = create_app(Vec3::new(0.0, -9.81, 0.0));
     app.init_resource::<Unstable>().add_observer(
         |event: On<SurfaceUnstable>, mut seen: ResMut<Unstable>| {
@@ -426,11 +428,21 @@ fn a_surface_made_to_diverge_says_so_once_and_hands_rapier_nothing_bad() {
     }
     let ball_left = app
         .world_mut()
-        .spawn(ball(Vec3::new(-3.0, -0.4, 0.0), 0.15, 1000.0, Vec3::ZERO))
+        .spawn(ball(
+            Vec3::new(-3.0, -0.4, 0.0),
+            0.15,
+            BALL_DENSITY,
+            Vec3::ZERO,
+        ))
         .id();
     let ball_right = app
         .world_mut()
-        .spawn(ball(Vec3::new(3.0, -0.4, 0.0), 0.15, 1000.0, Vec3::ZERO))
+        .spawn(ball(
+            Vec3::new(3.0, -0.4, 0.0),
+            0.15,
+            BALL_DENSITY,
+            Vec3::ZERO,
+        ))
         .id();
     let mut fastest = 0.0f32;
     for _ in 0..120 {
@@ -444,7 +456,7 @@ fn a_surface_made_to_diverge_says_so_once_and_hands_rapier_nothing_bad() {
     let health = |e| app.world().get::<SurfaceHealth>(e).unwrap().clone();
     let (sick, well) = (health(left), health(right));
     assert!(!sick.is_stable() && sick.episodes == 1, "{sick:?}");
-    assert!(sick.troubled_steps > 100, "{sick:?}");
+    assert!(sick.troubled_steps > 50, "{sick:?}");
     assert!(well.is_stable() && well.episodes == 0, "{well:?}");
     let seen = &app.world().resource::<Unstable>().0;
     assert_eq!(seen.len(), 1, "one event: {seen:?}");

@@ -36,6 +36,7 @@ pub fn create_app() -> App {
 
 /// Pins, where they are and at rest ([`hold_still`]), the points whose rest position `held`
 /// picks.
+#[allow(dead_code)] // not every test file that includes this pins
 pub fn pin(app: &mut App, surface: Entity, held: impl Fn(Vec3) -> bool) {
     let rest = app
         .world()

@@ -8,7 +8,9 @@ use bevy::prelude::*;
 use bevy_rapier3d::prelude::RapierContextMut;
 use bevy_rapier3d::rapier::dynamics::{RigidBody, RigidBodyHandle};
 
-use crate::core::solver::contact::{BodyState, ContactImpulse, ContactParams, Proximity, resolve};
+use crate::core::solver::contact::{
+    BodyState, ContactImpulse, ContactParams, Proximity, resolve, will_touch,
+};
 
 /// Rapier's scene through one tick, and the state each body touched so far is left in.
 pub(super) struct RigidSide<'w> {
@@ -33,10 +35,13 @@ pub(super) struct BodyContacts {
 impl RigidSide<'_> {
     /// Resolves the contacts of each body in turn and applies the opposite impulses to the
     /// dynamic ones; returns the impulses on the surface, body after body.
+    /// `reweigh` sets the proximities' inverse masses once it is known which of them touch
+    /// (the points that touch one body together move together).
     pub(super) fn resolve(
         &mut self,
         by_body: Vec<BodyContacts>,
         params: &ContactParams,
+        reweigh: &mut dyn FnMut(&mut [Proximity], &[bool]),
     ) -> Vec<ContactImpulse> {
         let (gravity, dt) = (self.gravity, self.dt);
         let states = &mut self.bodies;
@@ -58,6 +63,13 @@ impl RigidSide<'_> {
             // A proximity measured from a bad state (a surface the guard had to stop) takes
             // no part: nothing non-finite reaches rapier.
             proximities.retain(|p| p.velocity.is_finite() && p.gap.is_finite());
+            let touching: Vec<bool> = proximities
+                .iter()
+                .map(|p| will_touch(&state, p, dt, params))
+                .collect();
+            if touching.iter().filter(|t| **t).count() > 1 {
+                reweigh(&mut proximities, &touching);
+            }
             let Ok(impulses) = resolve(&mut state, &mut proximities, dt, params) else {
                 continue;
             };

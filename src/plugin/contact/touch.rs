@@ -9,7 +9,7 @@ use bevy_rapier3d::rapier::geometry::InteractionGroups;
 use bevy_rapier3d::rapier::math::Pose;
 use bevy_rapier3d::rapier::parry::shape::Shape;
 
-use crate::core::solver::contact::{ContactImpulse, ContactParams, Proximity};
+use crate::core::solver::contact::{ContactImpulse, ContactParams, Proximity, group_step_masses};
 
 use super::bodies::{BodyContacts, RigidSide};
 use super::colliders::{NearCollider, near_colliders};
@@ -46,7 +46,10 @@ pub(super) fn touch(
     }
     let world = surface.world_points(dt);
     let by_body = proximities_by_body(surface, &world, &near, &rigid.context, dt);
-    touched.impulses = rigid.resolve(by_body, params);
+    let mut reweigh = |proximities: &mut [Proximity], touching: &[bool]| {
+        together(surface, proximities, touching, dt);
+    };
+    touched.impulses = rigid.resolve(by_body, params, &mut reweigh);
     touched
 }
 
@@ -83,6 +86,25 @@ fn proximities_by_body(
         }
     }
     by_body
+}
+
+/// The points that touch one body together move together within the tick: each takes the
+/// mass of [`group_step_masses`], without the springs to the others (`touching[k]`: whether
+/// `proximities[k]` touches).
+fn together(surface: &SurfaceView<'_>, proximities: &mut [Proximity], touching: &[bool], dt: f32) {
+    let mut mask = vec![false; surface.points.len()];
+    for (p, _) in proximities.iter().zip(touching).filter(|(_, t)| **t) {
+        mask[p.point] = true;
+    }
+    let masses = group_step_masses(
+        surface.masses.masses(),
+        surface.springs.iter().map(|(_, s)| s),
+        &mask,
+        dt,
+    );
+    for p in proximities.iter_mut() {
+        p.inv_mass = surface.inv_mass(p.point, masses[p.point]);
+    }
 }
 
 /// Point `i`'s proximity to collider `c` (of `shape` at `pose`), or none if its sphere

@@ -224,6 +224,34 @@ pub fn step_masses(
     out
 }
 
+/// [`step_masses`] for points that touch one body together: each touching point's own mass
+/// plus `dt·d + dt²·k` of only those of its springs whose other end does not touch too
+/// (`touching[i]`). Points pressed together move together, so the springs between them do
+/// not resist: counting them, a scan landing flat on a floor took each of its points as
+/// up to 200 times heavier than it is (h²Σk/m at 60 Hz) and bounced ten times higher than
+/// it fell. A point touching alone keeps its full step mass. Points that do not touch get
+/// their own mass.
+pub fn group_step_masses(
+    masses: &[f32],
+    springs: impl Iterator<Item = crate::core::solver::SpringSpec>,
+    touching: &[bool],
+    dt: f32,
+) -> Vec<f32> {
+    let mut out = masses.to_vec();
+    let touches = |i: usize| touching.get(i).copied().unwrap_or(false);
+    for s in springs {
+        let (a, b) = (s.a as usize, s.b as usize);
+        if touches(a) == touches(b) {
+            continue;
+        }
+        let end = if touches(a) { a } else { b };
+        if let Some(m) = out.get_mut(end) {
+            *m += dt * s.damping + dt * dt * s.stiffness;
+        }
+    }
+    out
+}
+
 /// Resolves the contacts of one body for a tick of `dt` seconds: returns the impulse on each
 /// point that touches (points that stay apart are left out) and applies the opposite
 /// impulses to `body`, whose velocities then hold the body's state after the contacts.
@@ -264,6 +292,23 @@ pub fn resolve(
     Ok(impulses)
 }
 
+/// Whether the point of `p` touches `body` this tick (its normal speed at the end of the
+/// tick would pass what the gap allows), given the body's current velocities.
+pub fn will_touch(body: &BodyState, p: &Proximity, dt: f32, params: &ContactParams) -> bool {
+    let normal_speed = (p.velocity - body.velocity_at(p.at)).dot(p.normal);
+    normal_speed < allowed_speed(p, dt, params)
+}
+
+/// The least normal speed allowed at the end of the tick: apart, the gap may close but not
+/// more; overlapping, a share of the overlap is pushed out.
+fn allowed_speed(p: &Proximity, dt: f32, params: &ContactParams) -> f32 {
+    if p.gap >= 0.0 {
+        -p.gap / dt
+    } else {
+        params.depth_recovery * -p.gap / dt
+    }
+}
+
 /// The impulse on the point of one contact, given the body's current velocities; `None`
 /// when the point does not touch this tick.
 fn contact_impulse(
@@ -274,13 +319,7 @@ fn contact_impulse(
 ) -> Option<Vec3> {
     let relative = p.velocity - body.velocity_at(p.at);
     let normal_speed = relative.dot(p.normal);
-    // The least normal speed allowed at the end of the tick: apart, the gap may close but
-    // not more; overlapping, a share of the overlap is pushed out.
-    let allowed = if p.gap >= 0.0 {
-        -p.gap / dt
-    } else {
-        params.depth_recovery * -p.gap / dt
-    };
+    let allowed = allowed_speed(p, dt, params);
     if normal_speed >= allowed {
         return None;
     }
@@ -465,6 +504,44 @@ mod tests {
             "{m:?}"
         );
         assert_eq!(m[3], 1.0);
+    }
+
+    #[test]
+    fn points_that_touch_together_do_not_count_the_springs_between_them() {
+        let spring = |a, b| crate::core::solver::SpringSpec {
+            a,
+            b,
+            rest_length: 1.0,
+            stiffness: 3600.0,
+            damping: 0.0,
+        };
+        // A chain 0-1-2: 0 and 1 touch, 2 does not.
+        let springs = [spring(0, 1), spring(1, 2)];
+        let m = group_step_masses(
+            &[1.0; 3],
+            springs.into_iter(),
+            &[true, true, false],
+            1.0 / 60.0,
+        );
+        assert_eq!(
+            m[0], 1.0,
+            "its only spring goes to a point that touches too"
+        );
+        assert!(
+            (m[1] - 2.0).abs() < 1e-6,
+            "the spring to 2 resists: {}",
+            m[1]
+        );
+        assert_eq!(m[2], 1.0);
+        // Alone, 1 feels both springs, as in an implicit step.
+        let alone = group_step_masses(
+            &[1.0; 3],
+            springs.into_iter(),
+            &[false, true, false],
+            1.0 / 60.0,
+        );
+        let full = step_masses(&[1.0; 3], springs.into_iter(), 1.0 / 60.0);
+        assert!((alone[1] - full[1]).abs() < 1e-6);
     }
 
     #[test]

@@ -132,7 +132,7 @@ impl Pressure {
 
     /// An upper bound on the gas's contribution to the largest squared angular frequency
     /// (1/s²) at `points` with `masses`: c·Σᵢ|gᵢ|²/mᵢ, the rank-one term's one eigenvalue
-    /// (see [`Self::linearised`]), plus |ΔP| times a Gershgorin bound of the volume's Hessian
+    /// (g the volume's gradient, c = κ·V₀/V²), plus |ΔP| times a Gershgorin bound of the volume's Hessian
     /// (each triangle's longest edge over 3, per corner, over the corner's mass). Free
     /// points only.
     pub fn stiffness_bound(&self, points: &PointState, masses: &Masses) -> f64 {
