@@ -243,21 +243,39 @@ impl Stability {
         if omega2.is_nan() || omega2 <= 0.0 {
             return *self;
         }
-        let w2 = f64::from(self.omega2_max) + omega2;
-        let gamma = f64::from(self.gamma_max);
-        let ratio = f64::from(self.damping_ratio_min);
-        let symplectic = 4.0 / (gamma + (gamma * gamma + 4.0 * w2).sqrt());
-        let oscillation = ratio.min(f64::MAX) + drag / w2;
+        Self::from_rates(
+            f64::from(self.omega2_max) + omega2,
+            f64::from(self.gamma_max),
+            f64::from(self.damping_ratio_min),
+            drag,
+        )
+    }
+
+    /// The estimate from its bounds: the largest squared angular frequency `omega2`, the
+    /// largest damping rate `gamma` (drag included), the smallest damping ratio `ratio` and
+    /// the drag rate `drag` (see the module docs of `solver`).
+    pub(crate) fn from_rates(omega2: f64, gamma: f64, ratio: f64, drag: f64) -> Self {
+        let symplectic = if omega2 == 0.0 && gamma == 0.0 {
+            f64::INFINITY
+        } else {
+            4.0 / (gamma + (gamma * gamma + 4.0 * omega2).sqrt())
+        };
+        let oscillation = if omega2 > 0.0 {
+            ratio.min(f64::MAX) + drag / omega2
+        } else {
+            f64::INFINITY
+        };
         let overdamping = if gamma > 0.0 {
             2.0 / gamma
         } else {
             f64::INFINITY
         };
         Self {
-            omega2_max: w2 as f32,
+            omega2_max: omega2 as f32,
+            gamma_max: gamma as f32,
+            damping_ratio_min: ratio as f32,
             symplectic_dt: symplectic as f32,
             explicit_dt: oscillation.min(overdamping) as f32,
-            ..*self
         }
     }
 

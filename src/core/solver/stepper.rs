@@ -334,27 +334,21 @@ impl Stepper {
             Err(SolverError::StepTooLarge { .. }) if falls_back && auto => (1, true),
             other => other?,
         };
-        let mut report = if planned.1 && falls_back {
-            // Beyond the sub-step cap the explicit step would run above its stable step:
-            // hand over to implicit Euler before wasting the sub-steps.
+        // Beyond the sub-step cap the explicit step would run above its stable step: hand
+        // over to implicit Euler before wasting the sub-steps.
+        let hands_over = planned.1 && falls_back;
+        let step_with = if hands_over {
             planned = (1, false);
             self.fall_back();
-            StepReport {
-                fell_back: true,
-                instability: Some(Instability::SubstepLimit),
-                ..self.take_step(
-                    points,
-                    model,
-                    external,
-                    dt,
-                    Integrator::ImplicitEuler,
-                    planned,
-                    fresh,
-                )
-            }
+            Integrator::ImplicitEuler
         } else {
-            self.take_step(points, model, external, dt, integrator, planned, fresh)
+            integrator
         };
+        let mut report = self.take_step(points, model, external, dt, step_with, planned, fresh);
+        if hands_over {
+            report.fell_back = true;
+            report.instability = report.instability.or(Some(Instability::SubstepLimit));
+        }
         if report.recovered && integrator.is_explicit() && falls_back && !report.fell_back {
             // The explicit step went bad: take it again, implicitly, from the restored state.
             let first = report.instability;
@@ -623,29 +617,7 @@ fn estimate_stability(config: &SolverConfig, model: Model<'_>) -> Stability {
         gamma = gamma.max(damp[i] * inv);
     }
     let drag = f64::from(config.drag);
-    gamma += drag;
-    let symplectic = if omega2 == 0.0 && gamma == 0.0 {
-        f64::INFINITY
-    } else {
-        4.0 / (gamma + (gamma * gamma + 4.0 * omega2).sqrt())
-    };
-    let oscillation = if omega2 > 0.0 {
-        ratio.min(f64::MAX) + drag / omega2
-    } else {
-        f64::INFINITY
-    };
-    let overdamping = if gamma > 0.0 {
-        2.0 / gamma
-    } else {
-        f64::INFINITY
-    };
-    Stability {
-        omega2_max: omega2 as f32,
-        gamma_max: gamma as f32,
-        damping_ratio_min: ratio as f32,
-        symplectic_dt: symplectic as f32,
-        explicit_dt: oscillation.min(overdamping) as f32,
-    }
+    Stability::from_rates(omega2, gamma + drag, ratio, drag)
 }
 
 /// [`integrate_axis`]'s arguments, handed to [`pulp`] so that the loop is compiled for the
