@@ -236,8 +236,8 @@ fn pinned_and_poked(target: usize, steps: usize) -> Scene {
 /// - the dense point at the pole moved down by 60 to 135 % of the pull (the grabbed
 ///   simulation points move by the pull; on a coarse network the transfer's local fit
 ///   carries a sharp dent up to a quarter further at the dense points between them);
-/// - the pinned simulation points did not move, and the dense points below y = −0.9 (which
-///   follow them and the free points just above them) by less than 10 % of the pull;
+/// - the pinned simulation points did not move, and the dense points below y = −0.9 (held
+///   to the pins: the scene's pin region holds them) by less than 10⁻⁶;
 /// - no point moved more than twice the pull.
 fn assert_poked(o: &Outcome, inliers: usize) {
     let pole = (0..inliers)
@@ -249,7 +249,7 @@ fn assert_poked(o: &Outcome, inliers: usize) {
         .unwrap();
     let down = o.rest[pole].y - o.positions[pole].y;
     assert!((0.12..0.27).contains(&down), "the pole moved {down}");
-    assert_held(o, |p| p.y < -0.8, |p| p.y < -0.9, 0.02);
+    assert_held(o, |p| p.y < -0.8, |p| p.y < -0.9, 1e-6);
     let max = o.max_displacement();
     assert!(max < 0.4, "a point moved {max}");
 }
@@ -291,15 +291,15 @@ fn a_flat_sheet_sags_between_its_pinned_edges() {
         },
     ];
     let o = run(&s, sheet).unwrap();
-    // Sensible: the middle sags (down, by less than the half-span); the held edges stay (the
-    // dense points there follow free simulation points too: within 10 % of the sag); every
-    // point moves down, and sideways by less than half the sag.
+    // Sensible: the middle sags (down, by less than the half-span); the held edges stay,
+    // dense points included (the scene's pin regions hold theirs to the pins alone); every point moves
+    // down, and sideways by less than half the sag.
     let middle = (0..o.rest.len())
         .min_by(|&a, &b| o.rest[a].length().total_cmp(&o.rest[b].length()))
         .unwrap();
     let sag = o.rest[middle].z - o.positions[middle].z;
     assert!(sag > 0.01 && sag < 1.0, "sag {sag}");
-    assert_held(&o, |p| p.x.abs() > 0.95, |p| p.x.abs() > 0.97, 0.1 * sag);
+    assert_held(&o, |p| p.x.abs() > 0.95, |p| p.x.abs() > 0.97, 1e-6);
     for (r, p) in o.rest.iter().zip(&o.positions) {
         assert!(p.z <= r.z + 1e-3, "a point rose: {r} → {p}");
         assert!((p.truncate() - r.truncate()).length() < 0.5 * sag);

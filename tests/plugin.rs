@@ -232,6 +232,62 @@ fn ten_surfaces_run_at_once() {
 }
 
 #[test]
+fn dense_points_by_pins_a_game_sets_hold_exactly() {
+    use bevy_point_springs::core::solver::hold_still;
+    let mut app = create_app(&assets_dir(), TICK);
+    let config = SurfaceConfig {
+        simplify: SimplifyConfig::target(150),
+        ..default()
+    };
+    let sphere = DeformableSurface::cloud(shapes::fibonacci_sphere(2000, 1.0), config);
+    let e = app.world_mut().spawn(sphere).id();
+    settle(&mut app, &[e]);
+    // A few ticks of falling first: the pins are set on a moving surface, where it is.
+    for _ in 0..5 {
+        app.update();
+    }
+    let world = app.world_mut();
+    let rest = world.get::<SurfaceNetwork>(e).unwrap().0.positions.clone();
+    let (mut masses, mut points) = world
+        .query::<(&mut SurfaceMasses, &mut SimulationPoints)>()
+        .get_mut(world, e)
+        .unwrap();
+    hold_still(&mut masses, &mut points, |i| rest[i].y > 0.7).unwrap();
+    app.update();
+    let held_at = app
+        .world()
+        .get::<DenseSurface>(e)
+        .unwrap()
+        .positions()
+        .to_vec();
+    for _ in 0..60 {
+        app.update();
+    }
+    let dense = app.world().get::<DenseSurface>(e).unwrap();
+    let held = dense.transfer().report().held;
+    assert!(held > 0);
+    // The dense points by the pins (nearest a pinned point at rest) stay where the pins
+    // caught them, bit for bit; the rest hangs below them.
+    let nearest = |p: Vec3| {
+        (0..rest.len())
+            .min_by(|&a, &b| rest[a].distance(p).total_cmp(&rest[b].distance(p)))
+            .unwrap()
+    };
+    let (mut counted, mut sag) = (0, 0.0f32);
+    for (i, (&now, &then)) in dense.positions().iter().zip(&held_at).enumerate() {
+        if rest[nearest(dense.transfer().rest_positions()[i])].y > 0.7 {
+            counted += 1;
+            assert_eq!(now, then, "dense point {i} by the pins moved");
+        } else {
+            sag = sag.max(then.y - now.y);
+        }
+    }
+    // (A few more are held: those almost as near a pin as a free point.)
+    assert!(counted > 0 && counted <= held, "{counted} of {held}");
+    assert!(sag > 1e-3, "the free part sagged {sag}");
+}
+
+#[test]
 fn despawning_while_preparing_or_simulating_is_clean() {
     let mut app = create_app(&assets_dir(), TICK);
     // Big enough that its preparation is still under way a few frames later.

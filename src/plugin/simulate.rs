@@ -31,8 +31,9 @@ use crate::core::transfer::TransferError;
 
 use super::components::{
     DenseSurface, ModelQuery, SceneTimeline, SimulationPoints, StepOnce, SurfaceAnchors,
-    SurfaceForces, SurfaceInView, SurfaceMaterial, SurfaceNetwork, SurfaceSettings, SurfaceSleep,
-    SurfaceSprings, SurfaceStatus, SurfaceStepper, SurfaceTimings, SurfaceWork, TransferTiming,
+    SurfaceForces, SurfaceInView, SurfaceMasses, SurfaceMaterial, SurfaceNetwork, SurfaceSettings,
+    SurfaceSleep, SurfaceSprings, SurfaceStatus, SurfaceStepper, SurfaceTimings, SurfaceWork,
+    TransferTiming,
 };
 
 /// Dense surfaces up to this many points follow the simulation on the calling thread
@@ -221,7 +222,7 @@ pub(crate) fn plastic_flow(time: Res<Time>, mut surfaces: Query<FlowParts>) {
 /// What the transfer systems read and change of a surface.
 type TransferParts = (
     Entity,
-    &'static SimulationPoints,
+    (&'static SimulationPoints, &'static SurfaceMasses),
     &'static SurfaceStepper,
     &'static mut DenseSurface,
     &'static mut SurfaceStatus,
@@ -230,11 +231,12 @@ type TransferParts = (
 );
 
 /// Resampling when due, then (every tick) the transfer; both wait while the surface is out
-/// of view.
+/// of view. The dense points by pinned simulation points are held to the pins first
+/// ([`DenseCloud::hold`]: nothing to do unless the masses changed).
 pub(crate) fn transfer_tick(mut surfaces: Query<TransferParts>) {
     for (
         entity,
-        points,
+        (points, masses),
         stepper,
         mut dense,
         mut status,
@@ -250,6 +252,10 @@ pub(crate) fn transfer_tick(mut surfaces: Query<TransferParts>) {
             continue;
         }
         let start = Instant::now();
+        if let Err(e) = dense.hold(masses) {
+            fail(entity, &mut status, "holding the pins", e);
+            continue;
+        }
         let steps = stepper.diagnostics().steps;
         if let Err(e) = dense.maintain(points, steps) {
             fail(entity, &mut status, "resampling", e);
@@ -280,12 +286,23 @@ fn follow_counted(
 /// The transfer of surfaces that follow once per rendered frame (and are in view), and of
 /// surfaces just seen again (so that they are not drawn as they were until the next tick).
 pub(crate) fn transfer_frame(mut surfaces: Query<TransferParts>) {
-    for (entity, points, _, mut dense, mut status, (settings, in_view), (mut work, mut timings)) in
-        &mut surfaces
+    for (
+        entity,
+        (points, masses),
+        _,
+        mut dense,
+        mut status,
+        (settings, in_view),
+        (mut work, mut timings),
+    ) in &mut surfaces
     {
         let due = settings.transfer == TransferTiming::PerFrame || in_view.is_changed();
         if status.is_ready() && in_view.0 && due {
             let start = Instant::now();
+            if let Err(e) = dense.hold(masses) {
+                fail(entity, &mut status, "holding the pins", e);
+                continue;
+            }
             follow_counted(entity, &mut dense, points, &mut status, &mut work);
             timings.transfer_ms = ms_since(start);
         }

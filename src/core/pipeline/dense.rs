@@ -5,6 +5,7 @@ use std::path::Path;
 use glam::Vec3;
 
 use crate::core::cloud::io::{PlyEncoding, SaveError, write_ply};
+use crate::core::solver::Masses;
 
 use super::*;
 
@@ -27,6 +28,8 @@ pub struct DenseCloud {
     inserted: usize,
     /// The step count resampling last looked at (a paused surface is not checked again).
     maintained_at: u64,
+    /// The revision of the masses whose pins the transfer holds to (0: none seen).
+    pins_revision: u64,
 }
 
 /// Where a [`DenseCloud`] stands (for a snapshot): its deformed points, the points
@@ -81,7 +84,54 @@ impl DenseCloud {
             revision: 1,
             inserted: 0,
             maintained_at: 0,
+            pins_revision: 0,
         }
+    }
+
+    /// Makes the dense points by pinned simulation points follow the pins exactly
+    /// ([`Transfer::hold`]) with the pins of `masses` (and the dense points
+    /// [`Self::hold_where`] named). Cheap when the masses did not change since the last
+    /// call; call it whenever pins may have changed (the plugin does, every tick). Returns
+    /// whether rows were fitted again (the next frame then runs even where the simulation
+    /// points did not move).
+    pub fn hold(&mut self, masses: &Masses) -> Result<bool, TransferError> {
+        if masses.revision == self.pins_revision {
+            return Ok(false);
+        }
+        let mut dense = self.transfer.pins().dense.clone();
+        if !dense.is_empty() {
+            dense.resize(self.transfer.len(), false);
+        }
+        self.hold_pins(masses, dense)
+    }
+
+    /// [`Self::hold`], and the dense points whose rest position `held` picks are held to the
+    /// pins as well, even where their nearest simulation point is free: a pinned region
+    /// drawn at the dense resolution (a scene's pin regions; points resampling inserts later
+    /// are held only by their nearest simulation point).
+    pub fn hold_where(
+        &mut self,
+        masses: &Masses,
+        held: impl Fn(Vec3) -> bool,
+    ) -> Result<bool, TransferError> {
+        let dense = self
+            .transfer
+            .rest_positions()
+            .iter()
+            .map(|&p| held(p))
+            .collect();
+        self.hold_pins(masses, dense)
+    }
+
+    fn hold_pins(&mut self, masses: &Masses, dense: Vec<bool>) -> Result<bool, TransferError> {
+        let pins = Pins {
+            simulation: (0..masses.len()).map(|i| masses.is_pinned(i)).collect(),
+            dense,
+        };
+        let refit = self.transfer.hold(&pins)? > 0;
+        self.pins_revision = masses.revision;
+        self.fresh &= !refit;
+        Ok(refit)
     }
 
     /// Number of dense points (resampled ones included).
@@ -282,18 +332,23 @@ impl DenseCloud {
     /// point first, then computes the transfer's coefficients anew from the dense points'
     /// current positions and normals to the simulation points' current positions.
     /// Resampling starts again from the new rest surface.
+    /// The pins held to stay held.
     pub fn rebase(&mut self, sim: &PointState) -> Result<(), TransferError> {
         self.follow(sim)?;
-        let transfer = Transfer::new(
+        let mut transfer = Transfer::new(
             &self.positions,
             &self.normals,
             &sim.positions(),
             self.transfer.config(),
         )?;
+        if !self.transfer.pins().is_empty() {
+            transfer.hold(self.transfer.pins())?;
+        }
         *self = Self {
             revision: self.revision + 1,
             inserted: self.inserted,
             maintained_at: self.maintained_at,
+            pins_revision: self.pins_revision,
             ..Self::new(transfer, self.resample)
         };
         Ok(())

@@ -53,7 +53,9 @@ use crate::core::solver::{
     PointState, Pressure, Solver, SolverConfig, SolverError, SpringMaterial,
 };
 use crate::core::transfer::resample::{ResampleConfig, ResampleError, ResampleReport, Resampler};
-use crate::core::transfer::{FrameInput, NormalUpdate, Transfer, TransferConfig, TransferError};
+use crate::core::transfer::{
+    FrameInput, NormalUpdate, Pins, Transfer, TransferConfig, TransferError,
+};
 
 /// Where the normals of the dense cloud come from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]

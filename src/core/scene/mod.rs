@@ -419,6 +419,10 @@ impl Scene {
             &mut solver.masses,
             &mut solver.points,
         )?;
+        let pins = &self.pins;
+        surface.dense.hold_where(&surface.solver.masses, |p| {
+            pins.iter().any(|r| r.contains(p))
+        })?;
         let timeline = Timeline::new(self, &surface.network.positions);
         Ok((surface, timeline))
     }

@@ -190,6 +190,7 @@ impl SceneRun {
             }
         }
         self.surface.dense.restore(&snapshot.dense)?;
+        self.surface.dense.hold(&solver.masses)?;
         self.surface.solver = solver;
         self.timeline = timeline;
         self.resampled = snapshot.resampled;

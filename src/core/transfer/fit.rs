@@ -6,12 +6,31 @@ use rayon::prelude::*;
 
 use super::*;
 
+/// A dense point is held by the pins ([`Transfer::hold`]) where its nearest pinned
+/// neighbour is at most this many times as far as its nearest free one...
+pub const PIN_HOLD: f64 = 1.25;
+
+/// ...and between that and this many times, its free neighbours' weights rise smoothly from
+/// nothing to their full Gaussian weight, so that the drawn surface does not tear where the
+/// held part meets the free part.
+pub const PIN_BLEND: f64 = 2.5;
+
 /// Kinds of fit.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Fit {
+pub(crate) enum Fit {
     Full,
     Plane,
     Regularised,
+}
+
+/// What a row's fit came out as.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) struct RowKind {
+    pub(crate) fit: Fit,
+    /// The fit does not give back the rest surface (see [`reproduces_rest`]).
+    pub(crate) residual: bool,
+    /// The row follows pinned simulation points only (see [`Transfer::hold`]).
+    pub(crate) held: bool,
 }
 
 impl Transfer {
@@ -66,7 +85,8 @@ impl Transfer {
             },
             coefficients: Vec::new(),
             residual_rows: Vec::new(),
-            report: FitReport::default(),
+            kinds: Vec::new(),
+            pins: Pins::default(),
         };
         let normals: Vec<Vec3> = normals.iter().map(|n| n.normalize()).collect();
         transfer.extend(rest, &normals, &KnnIndex::build(sim_rest));
@@ -85,56 +105,187 @@ impl Transfer {
             rest,
             normals,
             sim: &self.sim_rest,
-            index,
+            pins: &self.pins,
+            first: start,
             k,
             bandwidth: self.config.bandwidth,
         };
-        let fits = match &mut self.neighbours {
-            Neighbours::Narrow(n) => job.fill(n, start, coefficients),
-            Neighbours::Wide(n) => job.fill(n, start, coefficients),
+        let nearest = |p: Vec3, _: &[u32], nbr: &mut Vec<u32>| {
+            nbr.extend(index.nearest(p, k).iter().map(|nb| nb.index));
         };
-        for (row, (fit, reproduces_rest)) in fits.into_iter().enumerate() {
-            match fit {
-                Fit::Full => self.report.full += 1,
-                Fit::Plane => self.report.plane += 1,
-                Fit::Regularised => self.report.regularised += 1,
+        let kinds = match &mut self.neighbours {
+            Neighbours::Narrow(n) => {
+                n.resize((start + rest.len()) * k, 0);
+                job.fill(&mut n[start * k..], coefficients, |_, _| true, nearest)
             }
-            if !reproduces_rest {
-                self.residual_rows.push(start + row);
+            Neighbours::Wide(n) => {
+                n.resize((start + rest.len()) * k, 0);
+                job.fill(&mut n[start * k..], coefficients, |_, _| true, nearest)
             }
+        };
+        self.kinds.extend(kinds.into_iter().map(Option::unwrap));
+        self.residual_rows
+            .extend((start..self.kinds.len()).filter(|&i| self.kinds[i].residual));
+    }
+
+    /// Makes the dense points follow the pins. A dense point with a pinned neighbour is
+    /// *held* where its nearest pinned neighbour is at most [`PIN_HOLD`] times as far as its
+    /// nearest free one, or where `pins` names it (a pinned region drawn at the dense
+    /// resolution): its row is fitted again over its pinned neighbours alone, so that it
+    /// moves exactly as they do (not at all while they hold still; rigidly with them when
+    /// they are moved together, where they allow a full fit), whatever the free points
+    /// nearby do. Rows up to [`PIN_BLEND`] times as far weigh their free neighbours less, so
+    /// that the drawn surface does not tear at the pins' edge. Only rows whose neighbours'
+    /// pins or own name changed are fitted again; the result is the same, bit for bit, as a
+    /// transfer given these pins from the start. Returns how many rows were fitted again.
+    pub fn hold(&mut self, pins: &Pins) -> Result<usize, TransferError> {
+        let (n, rows) = (self.sim_rest.len(), self.rest.len());
+        if pins.simulation.len() != n {
+            return Err(TransferError::PinCount {
+                expected: n,
+                found: pins.simulation.len(),
+            });
+        }
+        if !pins.dense.is_empty() && pins.dense.len() != rows {
+            return Err(TransferError::PinCount {
+                expected: rows,
+                found: pins.dense.len(),
+            });
+        }
+        let pins = pins.normalised();
+        if pins == self.pins {
+            return Ok(0);
+        }
+        let was = std::mem::replace(&mut self.pins, pins);
+        let sim_changed: Vec<bool> = (0..n)
+            .map(|j| was.simulation(j) != self.pins.simulation(j))
+            .collect();
+        let k = self.k;
+        let job = RowFit {
+            rest: &self.rest,
+            normals: &self.normals,
+            sim: &self.sim_rest,
+            pins: &self.pins,
+            first: 0,
+            k,
+            bandwidth: self.config.bandwidth,
+        };
+        let wanted = |row: usize, nbrs: &[u32]| {
+            was.dense(row) != job.pins.dense(row) || nbrs.iter().any(|&j| sim_changed[j as usize])
+        };
+        let refit = match &mut self.neighbours {
+            Neighbours::Narrow(nb) => job.refit(nb, &mut self.coefficients, wanted),
+            Neighbours::Wide(nb) => job.refit(nb, &mut self.coefficients, wanted),
+        };
+        let mut count = 0;
+        for (kind, new) in self.kinds.iter_mut().zip(refit) {
+            if let Some(new) = new {
+                *kind = new;
+                count += 1;
+            }
+        }
+        self.residual_rows = (0..self.kinds.len())
+            .filter(|&i| self.kinds[i].residual)
+            .collect();
+        Ok(count)
+    }
+
+    /// The pins the dense points are held to ([`Self::hold`]).
+    pub fn pins(&self) -> &Pins {
+        &self.pins
+    }
+
+    /// Which fit the dense points got.
+    pub fn report(&self) -> FitReport {
+        let mut report = FitReport::default();
+        for kind in &self.kinds {
+            match kind.fit {
+                Fit::Full => report.full += 1,
+                Fit::Plane => report.plane += 1,
+                Fit::Regularised => report.regularised += 1,
+            }
+            report.residual += usize::from(kind.residual);
+            report.held += usize::from(kind.held);
+        }
+        report
+    }
+}
+
+/// What [`Transfer::hold`] holds the dense points to.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct Pins {
+    /// Per simulation point: whether it is pinned.
+    pub simulation: Vec<bool>,
+    /// Per dense point: whether it is held even where its nearest simulation point is free
+    /// (a pinned region, drawn at the dense resolution); empty: none is.
+    pub dense: Vec<bool>,
+}
+
+impl Pins {
+    /// Whether simulation point `j` is pinned.
+    pub fn simulation(&self, j: usize) -> bool {
+        self.simulation.get(j).copied().unwrap_or(false)
+    }
+
+    /// Whether dense point `i` is named held.
+    pub fn dense(&self, i: usize) -> bool {
+        self.dense.get(i).copied().unwrap_or(false)
+    }
+
+    /// Whether nothing is pinned.
+    pub fn is_empty(&self) -> bool {
+        !self.simulation.contains(&true)
+    }
+
+    /// The same pins with empty lists where nothing is pinned or named, so that equal pins
+    /// compare equal.
+    fn normalised(&self) -> Self {
+        if self.is_empty() {
+            return Self::default();
+        }
+        Self {
+            simulation: self.simulation.clone(),
+            dense: if self.dense.contains(&true) {
+                self.dense.clone()
+            } else {
+                Vec::new()
+            },
         }
     }
 }
 
-/// The fits of new dense points (validated, unit normals) to the simulation points.
+/// The fits of dense points (validated, unit normals) to the simulation points.
 struct RowFit<'a> {
     rest: &'a [Vec3],
     normals: &'a [Vec3],
     sim: &'a [Vec3],
-    index: &'a KnnIndex,
+    pins: &'a Pins,
+    /// The row of `rest`'s first point.
+    first: usize,
     k: usize,
     bandwidth: f32,
 }
 
 impl RowFit<'_> {
-    /// Fits the rows (in parallel): the neighbours are appended to `neighbours` from row
-    /// `start` on (k a row), the coefficients written to `coefficients` ([`row_stride`] a
-    /// row). Per row: its kind of fit, and whether it reproduces the rest surface.
+    /// Fits the rows `wanted` picks (in parallel; all of them `rest`'s, k neighbours a row
+    /// in `neighbours`, [`row_stride`] coefficients in `coefficients`): `candidates` gives a
+    /// row's neighbours (from its rest position and what the row stores). Per row: its kind,
+    /// or `None` where it was left as it was.
     fn fill<I: NeighbourIndex>(
         &self,
-        neighbours: &mut Vec<I>,
-        start: usize,
+        neighbours: &mut [I],
         coefficients: &mut [f32],
-    ) -> Vec<(Fit, bool)> {
+        wanted: impl Fn(usize, &[u32]) -> bool + Sync,
+        candidates: impl Fn(Vec3, &[u32], &mut Vec<u32>) + Sync,
+    ) -> Vec<Option<RowKind>> {
         let (k, stride) = (self.k, row_stride(self.k));
-        neighbours.resize((start + self.rest.len()) * k, I::default());
-        neighbours[start * k..]
+        neighbours
             .par_chunks_mut(CHUNK * k)
             .zip(coefficients.par_chunks_mut(CHUNK * stride))
             .enumerate()
             .flat_map_iter(|(chunk, (nbrs, coefs))| {
-                let mut fits = Vec::with_capacity(nbrs.len() / k);
-                let mut nbr = Vec::with_capacity(k);
+                let mut kinds = Vec::with_capacity(nbrs.len() / k);
+                let (mut stored, mut nbr) = (Vec::with_capacity(k), Vec::with_capacity(k));
                 let mut coef = vec![Vec3A::ZERO; k];
                 for (row, (nbrs, coefs)) in nbrs
                     .chunks_exact_mut(k)
@@ -142,10 +293,16 @@ impl RowFit<'_> {
                     .enumerate()
                 {
                     let i = chunk * CHUNK + row;
+                    stored.clear();
+                    stored.extend(nbrs.iter().map(|j| j.get() as u32));
+                    if !wanted(self.first + i, &stored) {
+                        kinds.push(None);
+                        continue;
+                    }
                     let (p, n) = (self.rest[i], self.normals[i]);
                     nbr.clear();
-                    nbr.extend(self.index.nearest(p, k).iter().map(|nb| nb.index));
-                    let fit = fit_point(p, n, self.sim, &nbr, self.bandwidth, &mut coef);
+                    candidates(p, &stored, &mut nbr);
+                    let kind = self.fit_row(self.first + i, p, n, &mut nbr, &mut coef);
                     let m = k - 1;
                     let (c0, rest) = coefs.split_at_mut(m);
                     let (c1, c2) = rest.split_at_mut(m);
@@ -155,11 +312,68 @@ impl RowFit<'_> {
                     for (t, c) in coef[1..].iter().enumerate() {
                         (c0[t], c1[t], c2[t]) = (c.x, c.y, c.z);
                     }
-                    fits.push((fit, reproduces_rest(p, n, self.sim, &nbr, &coef)));
+                    kinds.push(Some(kind));
                 }
-                fits
+                kinds
             })
             .collect()
+    }
+
+    /// Fits again, from their stored neighbours, the rows `wanted` picks.
+    fn refit<I: NeighbourIndex>(
+        &self,
+        neighbours: &mut [I],
+        coefficients: &mut [f32],
+        wanted: impl Fn(usize, &[u32]) -> bool + Sync,
+    ) -> Vec<Option<RowKind>> {
+        self.fill(neighbours, coefficients, wanted, |_, stored, nbr| {
+            nbr.extend_from_slice(stored);
+        })
+    }
+
+    /// Fits dense point `p` (row `row`, unit normal `n`) to the simulation points `nbr`,
+    /// which it puts in their stored order: by distance from `p` at rest (then by index),
+    /// and, where the row is held (see [`Transfer::hold`]), the pinned ones first, fitted
+    /// alone (the free ones get zero coefficients). Writes a coefficient triple per
+    /// neighbour into `coef`.
+    fn fit_row(
+        &self,
+        row: usize,
+        p: Vec3,
+        n: Vec3,
+        nbr: &mut [u32],
+        coef: &mut [Vec3A],
+    ) -> RowKind {
+        let distance = |j: u32| self.sim[j as usize].distance_squared(p);
+        nbr.sort_by(|&a, &b| distance(a).total_cmp(&distance(b)).then(a.cmp(&b)));
+        let pinned = |j: u32| self.pins.simulation(j as usize);
+        // The nearest pinned and the nearest free neighbour, as a ratio of distances.
+        let first = |pin: bool| nbr.iter().find(|&&j| pinned(j) == pin).copied();
+        let ratio = match (first(true), first(false)) {
+            (None, _) => f64::INFINITY,
+            (Some(_), None) => 0.0,
+            (Some(a), Some(b)) => f64::from(distance(a).sqrt()) / f64::from(distance(b).sqrt()),
+        };
+        let held = ratio.is_finite() && (ratio <= PIN_HOLD || self.pins.dense(row));
+        coef.fill(Vec3A::ZERO);
+        let fit = if held {
+            nbr.sort_by_key(|&j| !pinned(j));
+            let used = nbr.iter().filter(|&&j| pinned(j)).count();
+            let (nbr, coef) = (&nbr[..used], &mut coef[..used]);
+            fit_point(p, n, self.sim, nbr, self.bandwidth, |_| 1.0, coef)
+        } else {
+            // By the pins' edge the free neighbours weigh less, down to nothing where the
+            // held rows begin: the drawn surface stays whole across the edge.
+            let t = ((ratio - PIN_HOLD) / (PIN_BLEND - PIN_HOLD)).clamp(0.0, 1.0);
+            let free = t * t * (3.0 - 2.0 * t);
+            let scale = |j: u32| if pinned(j) { 1.0 } else { free };
+            fit_point(p, n, self.sim, nbr, self.bandwidth, scale, coef)
+        };
+        RowKind {
+            fit,
+            residual: !reproduces_rest(p, n, self.sim, nbr, coef),
+            held,
+        }
     }
 }
 
@@ -247,12 +461,16 @@ fn solve_unit(l: &[[f64; 4]; 4], n: usize, r: usize) -> [f64; 4] {
 
 /// Fits dense point `p` (unit normal `n`) to its neighbours `nbr` among `sim`: writes, per
 /// neighbour, the coefficients of the value and the two tangent derivatives.
+///
+/// `scale` multiplies neighbours' weights (1 but for rows by the pins' edge, see
+/// [`PIN_BLEND`]).
 fn fit_point(
     p: Vec3,
     n: Vec3,
     sim: &[Vec3],
     nbr: &[u32],
     bandwidth: f32,
+    scale: impl Fn(u32) -> f64,
     coef: &mut [Vec3A],
 ) -> Fit {
     let (t1, t2) = tangent_frame(n);
@@ -276,7 +494,8 @@ fn fit_point(
     let basis = |q: &DVec3| [1.0, q.x / h, q.y / h, q.z / h];
     let weights: Vec<f64> = local
         .iter()
-        .map(|q| (-(q.x * q.x + q.y * q.y) / (h * h)).exp())
+        .zip(nbr)
+        .map(|(q, &j)| (-(q.x * q.x + q.y * q.y) / (h * h)).exp() * scale(j))
         .collect();
     let mut normal = Normal4 {
         m: [[0.0; 4]; 4],

@@ -37,6 +37,10 @@
 //! three) the slopes are damped by a ridge term: the value then tends to a weighted mean,
 //! never NaN.
 //!
+//! **Pins.** [`Transfer::hold`] fits the dense points by pinned simulation points over
+//! their pinned neighbours alone (zero coefficients for the free ones), so the drawn
+//! surface holds where the simulation does.
+//!
 //! **Normals.** The deformed tangents are t₁ + a₁ and t₂ + a₂ (a₁, a₂ the fitted
 //! derivatives of the displacement), the deformed normal their cross product: exact for
 //! any affine motion, and no k-NN search or PCA per frame.
@@ -67,6 +71,8 @@
 
 mod fit;
 mod frame;
+
+pub use fit::Pins;
 
 pub(crate) use frame::simd_displacements;
 use frame::simd_positions;
@@ -200,6 +206,14 @@ pub enum TransferError {
         /// Displacements given.
         found: usize,
     },
+    /// The pins do not match the simulation points.
+    #[error("expected a pin flag for each of {expected} simulation points, got {found}")]
+    PinCount {
+        /// Simulation points.
+        expected: usize,
+        /// Flags given.
+        found: usize,
+    },
     /// A snapshot's dense surface does not fit this one, or holds bad values.
     #[error("the snapshot's dense surface does not fit: {0}")]
     Snapshot(String),
@@ -226,6 +240,8 @@ pub struct FitReport {
     /// ground, ridge fits, a single neighbour); a frame computes them the longer way, from
     /// the displacements and the rest frame.
     pub residual: usize,
+    /// Rows that follow pinned simulation points alone ([`Transfer::hold`]).
+    pub held: usize,
 }
 
 /// A stored neighbour index (16 or 32 bits, see [`NARROW_INDEX_LIMIT`]).
@@ -293,8 +309,10 @@ pub struct Transfer {
     /// a frame computes them from the displacements, the rest position and the rest frame,
     /// instead of from the simulation points' positions alone.
     pub(crate) residual_rows: Vec<usize>,
-    /// The kinds of fit; its `residual` count is `residual_rows`' length.
-    pub(crate) report: FitReport,
+    /// Per row: its kind of fit, whether it is a residual row, whether it is held.
+    pub(crate) kinds: Vec<fit::RowKind>,
+    /// What the dense points are held to (see [`Transfer::hold`]).
+    pub(crate) pins: Pins,
 }
 
 /// What a frame of a [`Transfer`] reads of the simulation: the simulation points' current
@@ -390,14 +408,6 @@ impl Transfer {
     /// Rest normals of the dense points.
     pub fn rest_normals(&self) -> &[Vec3] {
         &self.normals
-    }
-
-    /// Which fit the dense points got.
-    pub fn report(&self) -> FitReport {
-        FitReport {
-            residual: self.residual_rows.len(),
-            ..self.report
-        }
     }
 
     /// The settings.

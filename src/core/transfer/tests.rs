@@ -89,3 +89,125 @@ fn frame_is_right_handed() {
         assert!(t1.dot(n).abs() < 1e-6 && t2.dot(n).abs() < 1e-6);
     }
 }
+
+/// A sphere's dense and simulation points, with the simulation points below y = −0.5 pinned.
+fn pinned_sphere() -> (Vec<Vec3>, Vec<Vec3>, Vec<Vec3>, Vec<bool>) {
+    let dense = crate::core::cloud::shapes::fibonacci_sphere(3000, 1.0);
+    let sim = crate::core::cloud::shapes::fibonacci_sphere(300, 1.0)
+        .positions()
+        .to_vec();
+    let pinned = sim.iter().map(|p| p.y < -0.5).collect();
+    let (p, n) = dense.into_parts();
+    (p, n.unwrap(), sim, pinned)
+}
+
+#[test]
+fn held_rows_follow_the_pins_alone() {
+    let (p, n, sim, pinned) = pinned_sphere();
+    let mut t = Transfer::new(&p, &n, &sim, TransferConfig::default()).unwrap();
+    let pins = Pins {
+        simulation: pinned.clone(),
+        dense: Vec::new(),
+    };
+    let refit = t.hold(&pins).unwrap();
+    assert!(refit > 0 && t.report().held > 0 && t.report().held <= refit);
+    assert_eq!(
+        t.hold(&pins).unwrap(),
+        0,
+        "the same pins again: nothing to do"
+    );
+    // The free points wave; the pins hold still, then turn rigidly about an axis through
+    // the origin.
+    let wave = |x: Vec3| Vec3::new((3.0 * x.y).sin(), x.x * x.z, 0.5) * 0.2;
+    let index = KnnIndex::build(&sim);
+    let nearest_pinned = |i: usize| pinned[index.nearest(p[i], 1)[0].index as usize];
+    for turn in [glam::Quat::IDENTITY, glam::Quat::from_rotation_z(0.3)] {
+        let disp: Vec<Vec3> = sim
+            .iter()
+            .zip(&pinned)
+            .map(|(&x, &pin)| if pin { turn * x - x } else { wave(x) })
+            .collect();
+        let (pos, nrm) = t.deform(&disp).unwrap();
+        let mut moved = 0.0f32;
+        for i in 0..p.len() {
+            // Every row whose nearest is pinned is held, and a few more close to a pin.
+            assert!(t.kinds[i].held || !nearest_pinned(i), "{i}");
+            if !t.kinds[i].held {
+                moved = moved.max(pos[i].distance(p[i]));
+                continue;
+            }
+            // Still pins hold every row; a turn comes back exactly where the pinned
+            // neighbours' fit reproduces the rest surface (not where a held row has too
+            // few pinned neighbours for more than a plane or a mean).
+            if turn == glam::Quat::IDENTITY || !t.residual_rows.contains(&i) {
+                assert!(pos[i].distance(turn * p[i]) < 2e-6, "{i}");
+                assert!(nrm[i].distance(turn * n[i]) < 1e-4, "{i}");
+            }
+        }
+        assert!(moved > 0.05, "the free part moved {moved}");
+    }
+}
+
+#[test]
+fn holding_again_gives_what_a_transfer_built_with_those_pins_gives() {
+    let (p, n, sim, pinned) = pinned_sphere();
+    let fresh = Transfer::new(&p, &n, &sim, TransferConfig::default()).unwrap();
+    let pins = |pinned: Vec<bool>| Pins {
+        simulation: pinned,
+        dense: Vec::new(),
+    };
+    let mut once = fresh.clone();
+    once.hold(&pins(pinned.clone())).unwrap();
+    // Other pins first (a cap at the top), then these: the same rows, bit for bit.
+    let mut twice = fresh.clone();
+    twice
+        .hold(&pins(sim.iter().map(|x| x.y > 0.6).collect()))
+        .unwrap();
+    twice.hold(&pins(pinned.clone())).unwrap();
+    let bits = |t: &Transfer| -> Vec<u32> { t.coefficients.iter().map(|c| c.to_bits()).collect() };
+    assert_eq!(bits(&once), bits(&twice));
+    assert_eq!(once.residual_rows, twice.residual_rows);
+    // Freed again: the transfer as built.
+    twice.hold(&pins(vec![false; sim.len()])).unwrap();
+    assert_eq!(bits(&twice), bits(&fresh));
+    assert_eq!(twice.report(), fresh.report());
+    assert_eq!(
+        twice.hold(&pins(vec![true; 3])),
+        Err(TransferError::PinCount {
+            expected: sim.len(),
+            found: 3
+        })
+    );
+}
+
+#[test]
+fn named_dense_points_are_held_where_a_pinned_neighbour_is() {
+    let (p, n, sim, pinned) = pinned_sphere();
+    let mut t = Transfer::new(&p, &n, &sim, TransferConfig::default()).unwrap();
+    let by_nearest = {
+        let mut u = t.clone();
+        u.hold(&Pins {
+            simulation: pinned.clone(),
+            dense: Vec::new(),
+        })
+        .unwrap();
+        u.report().held
+    };
+    // A band just above the pinned cap, at the dense resolution.
+    let dense: Vec<bool> = p.iter().map(|x| x.y < -0.45).collect();
+    t.hold(&Pins {
+        simulation: pinned.clone(),
+        dense,
+    })
+    .unwrap();
+    assert!(t.report().held > by_nearest);
+    let disp: Vec<Vec3> = sim
+        .iter()
+        .zip(&pinned)
+        .map(|(_, &pin)| if pin { Vec3::ZERO } else { Vec3::X * 0.1 })
+        .collect();
+    let (pos, _) = t.deform(&disp).unwrap();
+    for i in (0..p.len()).filter(|&i| p[i].y < -0.45) {
+        assert!(pos[i].distance(p[i]) < 2e-6, "{i}");
+    }
+}
