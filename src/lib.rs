@@ -81,10 +81,10 @@ pub mod prelude {
     pub use crate::plugin::{
         CloudAsset, DeformableSurface, DenseSurface, GrabMessage, GrabSettings, Grabs,
         ModelMessage, ModelOutcome, PointSpringsPlugin, PointSpringsSystems, PreparationProgress,
-        PrepareAgain, PrepareAgainFailed, SceneAsset, SceneTimeline, SimulationPoints, StepOnce,
-        SurfaceAnchors, SurfaceForces, SurfaceHealth, SurfaceInView, SurfaceMasses,
-        SurfaceMaterial, SurfaceNetwork, SurfaceSettings, SurfaceSleep, SurfaceSprings,
-        SurfaceStatus, SurfaceStepper, SurfaceTimings, SurfaceUnstable, SurfaceWork,
-        TransferTiming,
+        PrepareAgain, PrepareAgainFailed, SaveGameError, SaveGameMessage, SaveGameOutcome,
+        SaveName, SceneAsset, SceneTimeline, SimulationPoints, StepOnce, SurfaceAnchors,
+        SurfaceForces, SurfaceHealth, SurfaceInView, SurfaceMasses, SurfaceMaterial,
+        SurfaceNetwork, SurfaceSettings, SurfaceSleep, SurfaceSprings, SurfaceStatus,
+        SurfaceStepper, SurfaceTimings, SurfaceUnstable, SurfaceWork, TransferTiming,
     };
 }

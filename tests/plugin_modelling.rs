@@ -431,3 +431,182 @@ fn an_open_panel_draws_and_leaves_a_sleeping_surface_asleep() {
     assert!(asleep(&app), "the open panel woke the surface");
     assert_eq!(*app.world().get::<SurfaceWork>(sphere).unwrap(), work);
 }
+
+/// The saved-game outcomes sent since the last call.
+fn saved_outcomes(app: &mut App) -> Vec<SaveGameOutcome> {
+    app.world_mut()
+        .resource_mut::<Messages<SaveGameOutcome>>()
+        .drain()
+        .collect()
+}
+
+/// A gas-filled sphere (1500 dense, 150 simulation points) named "sphere", its bottom
+/// pinned, made plastic; ready.
+fn named_gas_sphere(app: &mut App) -> Entity {
+    let mut surface = floating(1500, 150);
+    surface.config.pressure = Some(200.0);
+    let sphere = app
+        .world_mut()
+        .spawn((surface, SaveName("sphere".into())))
+        .id();
+    settle(app, &[sphere]);
+    sphere
+}
+
+/// Vectors as bits.
+type Bits = Vec<[u32; 3]>;
+
+/// Everything that moves, as bits: simulation positions and velocities, dense positions.
+fn moving_bits(app: &App, e: Entity) -> (Bits, Bits, Bits) {
+    let bits = |v: Vec<Vec3>| v.iter().map(|p| p.to_array().map(f32::to_bits)).collect();
+    let points = app.world().get::<SimulationPoints>(e).unwrap();
+    let dense = app.world().get::<DenseSurface>(e).unwrap();
+    (
+        bits(points.positions()),
+        bits(points.velocities()),
+        bits(dense.positions().to_vec()),
+    )
+}
+
+#[test]
+fn a_saved_game_goes_on_bit_for_bit_in_a_fresh_app() {
+    use bevy_point_springs::core::solver::hold_still;
+    let dir = std::env::temp_dir().join(format!("point-springs-save-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("game.save");
+    // The first game: a plastic, gas-filled sphere pinned at the bottom, sculpted by a grab,
+    // baked, grabbed again (held while saving).
+    let mut app = create_app(&assets_dir(), TICK);
+    let sphere = named_gas_sphere(&mut app);
+    let world = app.world_mut();
+    let rest = world
+        .get::<SurfaceNetwork>(sphere)
+        .unwrap()
+        .0
+        .positions
+        .clone();
+    let (mut masses, mut points) = world
+        .query::<(&mut SurfaceMasses, &mut SimulationPoints)>()
+        .get_mut(world, sphere)
+        .unwrap();
+    hold_still(&mut masses, &mut points, |i| rest[i].y < -0.8).unwrap();
+    let mut material = app.world_mut().get_mut::<SurfaceMaterial>(sphere).unwrap();
+    material.yield_strain = 0.05;
+    material.creep_rate = 5.0;
+    let (_, top_rest) = nearest_point(&app, sphere, Vec3::Y);
+    let grab = |app: &mut App, key, at| {
+        app.world_mut().write_message(GrabMessage::Start {
+            key,
+            surface: sphere,
+            at,
+        })
+    };
+    let pull = |app: &mut App, key, target| {
+        app.world_mut()
+            .write_message(GrabMessage::Move { key, target })
+    };
+    grab(&mut app, 1, top_rest);
+    app.update();
+    for i in 0..40 {
+        pull(&mut app, 1, top_rest + Vec3::new(0.0, 0.01 * i as f32, 0.0));
+        app.update();
+    }
+    app.world_mut().write_message(GrabMessage::End { key: 1 });
+    app.world_mut()
+        .write_message(ModelMessage::Bake { surface: sphere });
+    app.update();
+    assert_eq!(outcomes(&mut app)[0].result, Ok(()));
+    let (_, side) = nearest_point(&app, sphere, Vec3::X);
+    let side = app
+        .world()
+        .get::<Transform>(sphere)
+        .unwrap()
+        .transform_point(side);
+    grab(&mut app, 7, side);
+    app.update();
+    pull(&mut app, 7, side + Vec3::X * 0.2);
+    app.world_mut()
+        .write_message(SaveGameMessage::Save { path: file.clone() });
+    app.update();
+    let saved = saved_outcomes(&mut app);
+    assert_eq!(saved[0].result, Ok(vec!["sphere".to_owned()]));
+    // The same game, loaded into a fresh app once its sphere is ready.
+    let mut fresh = create_app(&assets_dir(), TICK);
+    let again = named_gas_sphere(&mut fresh);
+    fresh
+        .world_mut()
+        .write_message(SaveGameMessage::Load { path: file.clone() });
+    fresh.update();
+    assert_eq!(
+        saved_outcomes(&mut fresh)[0].result,
+        Ok(vec!["sphere".to_owned()])
+    );
+    assert_eq!(moving_bits(&app, sphere), moving_bits(&fresh, again));
+    // Both go on, the grab (key 7) dragged further, then let go: the same bits each tick.
+    for i in 0..60 {
+        for (a, e) in [(&mut app, sphere), (&mut fresh, again)] {
+            match i {
+                40 => a.world_mut().write_message(GrabMessage::End { key: 7 }),
+                _ => pull(a, 7, side + Vec3::X * (0.2 + 0.005 * i as f32)),
+            };
+            a.update();
+            assert!(status(a, e).is_ready());
+        }
+        assert!(
+            moving_bits(&app, sphere) == moving_bits(&fresh, again),
+            "tick {i} after the load"
+        );
+    }
+    let baked = |app: &App, e| {
+        app.world()
+            .get::<bevy_point_springs::plugin::SurfaceBaked>(e)
+            .is_some()
+    };
+    assert!(baked(&app, sphere) && baked(&fresh, again));
+    // Bad files: typed errors, the game unchanged.
+    let before = moving_bits(&fresh, again);
+    let bytes = std::fs::read(&file).unwrap();
+    let cases: [(&str, Vec<u8>); 3] = [
+        ("foreign", b"ply\nformat ascii 1.0\n".to_vec()),
+        ("cut", bytes[..bytes.len() / 2].to_vec()),
+        ("empty", Vec::new()),
+    ];
+    for (name, content) in cases {
+        let path = dir.join(name);
+        std::fs::write(&path, content).unwrap();
+        fresh
+            .world_mut()
+            .write_message(SaveGameMessage::Load { path });
+        fresh.world_mut().resource_mut::<Time<Virtual>>().pause();
+        fresh.update();
+        fresh.world_mut().resource_mut::<Time<Virtual>>().unpause();
+        let result = saved_outcomes(&mut fresh).remove(0).result;
+        assert!(
+            matches!(
+                result,
+                Err(SaveGameError::NotASavedGame | SaveGameError::Damaged(_))
+            ),
+            "{name}: {result:?}"
+        );
+        assert_eq!(moving_bits(&fresh, again), before, "{name}");
+    }
+    // A game of another surface (no surface of its name here), a missing file.
+    fresh
+        .world_mut()
+        .entity_mut(again)
+        .insert(SaveName("other".into()));
+    fresh
+        .world_mut()
+        .write_message(SaveGameMessage::Load { path: file.clone() });
+    fresh.world_mut().write_message(SaveGameMessage::Load {
+        path: dir.join("missing"),
+    });
+    fresh.update();
+    let results: Vec<_> = saved_outcomes(&mut fresh)
+        .into_iter()
+        .map(|o| o.result)
+        .collect();
+    assert_eq!(results[0], Err(SaveGameError::NoSurface("sphere".into())));
+    assert!(matches!(results[1], Err(SaveGameError::Io { .. })));
+    std::fs::remove_dir_all(&dir).ok();
+}

@@ -6,8 +6,19 @@
 //! `cargo test --release --no-default-features --test soak -- --ignored --nocapture`;
 //! `SOAK_STEPS` changes the step count, `SOAK_SECONDS` stops each surface after that many
 //! seconds of wall time instead (CI runs it so, with a time bound).
+//!
+//! With the `rapier` feature it also holds the ECS soak (`support/ecs_soak.rs`): the plugin
+//! and rapier under churn for `SOAK_TICKS` ticks (or `SOAK_SECONDS`).
 
 use std::time::{Duration, Instant};
+
+#[cfg(feature = "rapier")]
+#[path = "support/rapier_app.rs"]
+mod rapier_app;
+
+#[cfg(feature = "rapier")]
+#[path = "support/ecs_soak.rs"]
+mod ecs_soak;
 
 use bevy_point_springs::core::scene::{Scene, SceneRun};
 use bevy_point_springs::core::solver::{Anchor, AnchorId, STANDARD_GRAVITY};

@@ -97,6 +97,18 @@ struct Grab {
     held: Vec<(AnchorId, Vec3)>,
 }
 
+/// What a grab holds of its surface (for a saved game): each held point's anchor and its
+/// offset from the hit.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub(crate) struct HeldGrab(Vec<(AnchorId, Vec3)>);
+
+impl HeldGrab {
+    /// The anchors it holds.
+    pub(crate) fn anchors(&self) -> impl Iterator<Item = AnchorId> + '_ {
+        self.0.iter().map(|(id, _)| *id)
+    }
+}
+
 /// The grabs being held, by key.
 #[derive(Resource, Debug, Default)]
 pub struct Grabs {
@@ -118,6 +130,30 @@ impl Grabs {
     /// surface was prepared again).
     pub(crate) fn forget_surface(&mut self, surface: Entity) {
         self.active.retain(|_, g| g.surface != surface);
+    }
+
+    /// The grabs of `surface`, by key (ascending).
+    pub(crate) fn of_surface(&self, surface: Entity) -> Vec<(u64, HeldGrab)> {
+        let mut grabs: Vec<(u64, HeldGrab)> = self
+            .active
+            .iter()
+            .filter(|(_, g)| g.surface == surface)
+            .map(|(&key, g)| (key, HeldGrab(g.held.clone())))
+            .collect();
+        grabs.sort_by_key(|(key, _)| *key);
+        grabs
+    }
+
+    /// Holds `held` of `surface` under `key` (a saved grab put back), ending what `key`
+    /// held before without touching its anchors.
+    pub(crate) fn hold(&mut self, key: u64, surface: Entity, held: HeldGrab) {
+        self.active.insert(
+            key,
+            Grab {
+                surface,
+                held: held.0,
+            },
+        );
     }
 
     /// The surface and the number of points held by the grab with `key`.

@@ -43,6 +43,7 @@ pub mod pick;
 pub mod prepare;
 #[cfg(feature = "render")]
 pub mod render;
+pub mod save;
 pub mod simulate;
 pub mod sleep;
 #[cfg(feature = "render")]
@@ -65,6 +66,9 @@ pub use grab::{GrabMessage, GrabSettings, Grabs};
 pub use health::{STABLE_STEPS_TO_RECOVER, SurfaceHealth, SurfaceUnstable};
 pub use model::{ModelMessage, ModelOutcome};
 pub use prepare::{PreparationPool, PrepareAgain, PrepareAgainFailed};
+pub use save::{
+    SAVED_GAME_MAGIC, SaveGameError, SaveGameMessage, SaveGameOutcome, SaveName, SurfaceBaked,
+};
 
 /// The plugin. Add it next to `DefaultPlugins` (or `MinimalPlugins`, plus `AssetPlugin`
 /// for files).
@@ -121,7 +125,10 @@ impl Plugin for PointSpringsPlugin {
             .register_type::<StepOnce>()
             .register_type::<SurfaceHealth>()
             .register_type::<GrabSettings>()
+            .register_type::<SaveName>()
             .add_message::<GrabMessage>()
+            .add_message::<SaveGameMessage>()
+            .add_message::<SaveGameOutcome>()
             .add_message::<ModelMessage>()
             .add_message::<ModelOutcome>()
             .init_resource::<GrabSettings>()
@@ -167,7 +174,10 @@ impl Plugin for PointSpringsPlugin {
             )
             .add_systems(
                 PostUpdate,
-                simulate::transfer_frame.in_set(PointSpringsSystems::Transfer),
+                (
+                    save::apply_saved_games.before(PointSpringsSystems::Transfer),
+                    simulate::transfer_frame.in_set(PointSpringsSystems::Transfer),
+                ),
             );
     }
 

@@ -22,6 +22,7 @@ use super::components::{
     DenseSurface, SceneTimeline, SimulationPoints, SurfaceAnchors, SurfaceMasses, SurfaceMaterial,
     SurfaceNetwork, SurfacePressure, SurfaceSleep, SurfaceSprings, SurfaceStatus,
 };
+use super::save::SurfaceBaked;
 use super::simulate::follow;
 use crate::core::cloud::io::PlyEncoding;
 use crate::core::pipeline::{BakeParts, bake};
@@ -95,11 +96,20 @@ pub(crate) fn apply_model_requests(
     mut requests: MessageReader<ModelMessage>,
     mut outcomes: MessageWriter<ModelOutcome>,
     mut surfaces: Query<ModelParts>,
+    mut commands: Commands,
 ) {
     for request in requests.read() {
         let result = carry_out(request, &mut surfaces);
         if let Err(e) = &result {
             error!("point-springs: {request:?} failed: {e}");
+        }
+        // A saved game carries a baked surface's rest shape.
+        if result.is_ok()
+            && let ModelMessage::Bake { surface } = request
+            && let Ok(parts) = surfaces.get(*surface)
+        {
+            let density = parts.6.0.density;
+            commands.entity(*surface).insert(SurfaceBaked { density });
         }
         outcomes.write(ModelOutcome {
             request: request.clone(),

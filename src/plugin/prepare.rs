@@ -37,6 +37,7 @@ use super::components::{
     SurfaceSource, SurfaceSprings, SurfaceStatus, SurfaceStepper,
 };
 use super::grab::Grabs;
+use super::save::SurfaceBaked;
 
 /// The rayon pool surfaces are prepared in (see the module docs).
 #[derive(Resource, Clone)]
@@ -409,4 +410,5 @@ fn insert_simulation(entity: &mut EntityCommands, prepared: Prepared) {
         Some(timeline) => entity.insert(SceneTimeline(timeline)),
         None => entity.remove::<SceneTimeline>(),
     };
+    entity.remove::<SurfaceBaked>();
 }

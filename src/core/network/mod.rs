@@ -43,6 +43,7 @@ mod mass;
 pub mod mesh;
 mod repair;
 mod reshape;
+pub use reshape::RestShape;
 
 use crate::core::simplify::{MAX_SIMPLIFY_K, MIN_SIMPLIFY_K, MIN_SIMULATION_POINTS};
 use build::{Adjacency, assemble, build_once};

@@ -3,7 +3,7 @@
 use glam::Vec3;
 
 use super::build::masses_of;
-use super::{NetworkError, Spring, SpringNetwork};
+use super::{NetworkError, NetworkReport, Spring, SpringNetwork};
 use crate::core::normals::face_normal_sums;
 
 impl SpringNetwork {
@@ -40,10 +40,6 @@ impl SpringNetwork {
                 }
             })
             .collect();
-        let length = |s: &Spring| Spring {
-            rest_length: positions[s.a as usize].distance(positions[s.b as usize]),
-            ..*s
-        };
         let (areas, mut masses, _) = masses_of(positions, &self.triangles, density)?;
         let mut report = self.report;
         report.area = areas.iter().sum::<f64>() as f32;
@@ -66,17 +62,97 @@ impl SpringNetwork {
         if report.dense_area > 0.0 {
             report.dense_area = report.total_mass / density;
         }
-        Ok(Self {
+        Ok(self.with_shape(RestShape {
             positions: positions.to_vec(),
             normals,
             masses,
+            area: report.area,
+            total_mass: report.total_mass,
+            dense_area: report.dense_area,
+        }))
+    }
+
+    /// What [`Self::reshaped`] changes: the rest shape (for a saved game of a baked surface).
+    pub fn rest_shape(&self) -> RestShape {
+        RestShape {
+            positions: self.positions.clone(),
+            normals: self.normals.clone(),
+            masses: self.masses.clone(),
+            area: self.report.area,
+            total_mass: self.report.total_mass,
+            dense_area: self.report.dense_area,
+        }
+    }
+
+    /// The same network with the rest shape `shape` put back (rest lengths measured there):
+    /// the network [`Self::reshaped`] gave, bit for bit, when `shape` is that one's. A shape
+    /// of another network (other counts) or with bad values is refused.
+    pub fn with_rest_shape(&self, shape: RestShape) -> Result<Self, NetworkError> {
+        let n = self.len();
+        if shape.positions.len() != n || shape.normals.len() != n {
+            return Err(NetworkError::LengthMismatch {
+                positions: shape.positions.len(),
+                normals: shape.normals.len(),
+            });
+        }
+        if shape.masses.len() != n {
+            return Err(NetworkError::LengthMismatch {
+                positions: n,
+                normals: shape.masses.len(),
+            });
+        }
+        if let Some(i) = (0..n).find(|&i| {
+            !(shape.positions[i].is_finite()
+                && shape.normals[i].is_finite()
+                && shape.masses[i] > 0.0
+                && shape.masses[i].is_finite())
+        }) {
+            return Err(NetworkError::InvalidPoint(i));
+        }
+        Ok(self.with_shape(shape))
+    }
+
+    fn with_shape(&self, shape: RestShape) -> Self {
+        let positions = &shape.positions;
+        let length = |s: &Spring| Spring {
+            rest_length: positions[s.a as usize].distance(positions[s.b as usize]),
+            ..*s
+        };
+        let report = NetworkReport {
+            area: shape.area,
+            total_mass: shape.total_mass,
+            dense_area: shape.dense_area,
+            ..self.report
+        };
+        Self {
             stretch: self.stretch.iter().map(length).collect(),
             bend: self.bend.iter().map(length).collect(),
+            positions: shape.positions,
+            normals: shape.normals,
+            masses: shape.masses,
             triangles: self.triangles.clone(),
             boundary: self.boundary.clone(),
             ring_offsets: self.ring_offsets.clone(),
             ring_indices: self.ring_indices.clone(),
             report,
-        })
+        }
     }
+}
+
+/// The rest shape of a network (what baking changes): positions, normals, masses and the
+/// measures that follow them.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct RestShape {
+    /// Rest positions.
+    pub positions: Vec<Vec3>,
+    /// Unit rest normals.
+    pub normals: Vec<Vec3>,
+    /// Masses.
+    pub masses: Vec<f32>,
+    /// [`NetworkReport::area`].
+    pub area: f32,
+    /// [`NetworkReport::total_mass`].
+    pub total_mass: f32,
+    /// [`NetworkReport::dense_area`].
+    pub dense_area: f32,
 }

@@ -55,6 +55,21 @@ pub struct DenseState {
     pub revision: u64,
 }
 
+/// The rest shape of a dense surface's transfer, as a bake left it (for a saved game: a
+/// surface prepared again from its source gets it back with [`DenseCloud::with_rest`]). The
+/// points resampling inserted are not in it (a [`DenseState`] holds them).
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct DenseRest {
+    /// Rest positions of the dense points.
+    pub positions: Vec<Vec3>,
+    /// Their unit rest normals.
+    pub normals: Vec<Vec3>,
+    /// Rest positions of the simulation points the transfer follows.
+    pub simulation: Vec<Vec3>,
+    /// The dense points named held ([`Pins::dense`]; inserted points included; empty: none).
+    pub held: Vec<bool>,
+}
+
 /// The pieces of a frame, for callers that split its rows over threads of their own
 /// (see [`DenseCloud::frame_parts`]).
 #[derive(Debug)]
@@ -236,6 +251,41 @@ impl DenseCloud {
         self.revision = state.revision;
         self.fresh = false;
         Ok(())
+    }
+
+    /// The rest shape of its transfer (see [`DenseRest`]).
+    pub fn rest(&self) -> DenseRest {
+        let original = self.transfer.len() - self.inserted;
+        DenseRest {
+            positions: self.transfer.rest[..original].to_vec(),
+            normals: self.transfer.normals[..original].to_vec(),
+            simulation: self.transfer.sim_rest.clone(),
+            held: self.transfer.pins().dense.clone(),
+        }
+    }
+
+    /// A dense cloud of this one's settings at the rest shape `rest` (a baked one), at rest,
+    /// no point inserted, no pin held yet: [`Self::restore`] a [`DenseState`] onto it, then
+    /// [`Self::hold_rest`]. The same rest gives the same coefficients, bit for bit. Bad
+    /// values are refused.
+    pub fn with_rest(&self, rest: &DenseRest) -> Result<Self, TransferError> {
+        let transfer = Transfer::with_unit_normals(
+            &rest.positions,
+            &rest.normals,
+            &rest.simulation,
+            self.transfer.config(),
+        )?;
+        Ok(Self::new(transfer, self.resample))
+    }
+
+    /// [`Self::hold`] with `masses`' pins and the dense points `rest` names held (after
+    /// [`Self::with_rest`] and [`Self::restore`]).
+    pub fn hold_rest(&mut self, masses: &Masses, rest: &DenseRest) -> Result<(), TransferError> {
+        let mut held = rest.held.clone();
+        if !held.is_empty() {
+            held.resize(self.transfer.len(), false);
+        }
+        self.hold_pins(masses, held).map(|_| ())
     }
 
     /// Changes each time the positions or normals do (for uploads).

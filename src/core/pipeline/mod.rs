@@ -35,7 +35,7 @@ mod bake;
 mod dense;
 
 pub use bake::{BakeParts, bake};
-pub use dense::{DenseCloud, DenseState, ExportError, FrameParts};
+pub use dense::{DenseCloud, DenseRest, DenseState, ExportError, FrameParts};
 
 use std::ops::ControlFlow;
 

@@ -94,7 +94,7 @@ use parts::non_negative;
 pub use parts::{Anchors, ExternalForces, Masses, PointState, Pressure, Springs, hold_still};
 pub use report::{Diagnostics, Energy, Instability, SolverError, Stability, StepReport};
 pub use springs::{COINCIDENT_DISTANCE, SpringSpec};
-pub use state::SolverState;
+pub use state::{SolverState, StateParts, StatePartsMut};
 pub use stepper::{Model, Stepper};
 
 /// Largest magnitude a coordinate or velocity component may reach before the guard treats

@@ -4,8 +4,8 @@
 use glam::{DVec3, Vec3};
 use serde::{Deserialize, Serialize};
 
-use super::parts::{Anchors, ExternalForces, Masses, PointState};
-use super::{Anchor, Diagnostics, Solver, SolverError};
+use super::parts::{Anchors, ExternalForces, Masses, PointState, Pressure, Springs};
+use super::{Anchor, Diagnostics, Solver, SolverError, Stepper};
 
 /// Everything a run changes in a [`Solver`]: positions and velocities, masses and pins,
 /// every spring's rest length (plastic flow moves it), stiffness and damping (a material
@@ -39,37 +39,57 @@ pub struct SolverState {
     pub warm_start: Vec<DVec3>,
 }
 
+/// The parts of a solver a [`SolverState`] is taken from: a [`Solver`]'s, or the Bevy
+/// layer's components.
+#[derive(Debug, Clone, Copy)]
+pub struct StateParts<'a> {
+    /// Positions and velocities.
+    pub points: &'a PointState,
+    /// Masses and pins.
+    pub masses: &'a Masses,
+    /// The springs.
+    pub springs: &'a Springs,
+    /// The anchors.
+    pub anchors: &'a Anchors,
+    /// External forces.
+    pub external: &'a ExternalForces,
+    /// The gas, where there is one.
+    pub pressure: Option<&'a Pressure>,
+    /// The stepper (its running totals and warm start).
+    pub stepper: &'a Stepper,
+}
+
+/// The parts of a solver a [`SolverState`] is put back into ([`SolverState::apply`]).
+#[derive(Debug)]
+pub struct StatePartsMut<'a> {
+    /// Positions and velocities.
+    pub points: &'a mut PointState,
+    /// Masses and pins.
+    pub masses: &'a mut Masses,
+    /// The springs.
+    pub springs: &'a mut Springs,
+    /// The anchors.
+    pub anchors: &'a mut Anchors,
+    /// External forces.
+    pub external: &'a mut ExternalForces,
+    /// The gas, where there is one.
+    pub pressure: Option<&'a mut Pressure>,
+    /// The stepper.
+    pub stepper: &'a mut Stepper,
+}
+
 impl Solver {
     /// The running state (see [`SolverState`]).
     pub fn state(&self) -> SolverState {
-        let n = self.points.len();
-        let mut springs = vec![[0.0; 3]; self.springs.len()];
-        for (i, s) in self.springs.iter() {
-            springs[i] = [s.rest_length, s.stiffness, s.damping];
-        }
-        let (anchor_slots, free_anchor_slots) = self.anchors.slots();
-        let (diagnostics, warm_start) = self.stepper.carried();
-        SolverState {
-            positions: self.points.positions(),
-            velocities: self.points.velocities(),
-            masses: self.masses.masses().to_vec(),
-            pinned: (0..n)
-                .filter(|&i| self.masses.is_pinned(i))
-                .map(|i| i as u32)
-                .collect(),
-            springs,
-            anchor_slots,
-            free_anchor_slots,
-            external: (0..self.external.len())
-                .map(|i| self.external.get(i))
-                .collect(),
-            pressure: self
-                .pressure
-                .as_ref()
-                .map(|p| (p.stiffness, p.rest_volume())),
-            diagnostics,
-            warm_start,
-        }
+        SolverState::capture(StateParts {
+            points: &self.points,
+            masses: &self.masses,
+            springs: &self.springs,
+            anchors: &self.anchors,
+            external: &self.external,
+            pressure: self.pressure.as_ref(),
+            stepper: &self.stepper,
+        })
     }
 
     /// Puts `state` back: afterwards the solver steps exactly as the one `state` was taken
@@ -77,7 +97,53 @@ impl Solver {
     /// is none or of another rest volume) or with bad values (non-finite, a mass not
     /// positive, an index out of range) is refused with nothing changed.
     pub fn restore(&mut self, state: &SolverState) -> Result<(), SolverError> {
-        let n = self.points.len();
+        state.apply(StatePartsMut {
+            points: &mut self.points,
+            masses: &mut self.masses,
+            springs: &mut self.springs,
+            anchors: &mut self.anchors,
+            external: &mut self.external,
+            pressure: self.pressure.as_mut(),
+            stepper: &mut self.stepper,
+        })
+    }
+}
+
+impl SolverState {
+    /// The running state of `parts`.
+    pub fn capture(parts: StateParts<'_>) -> Self {
+        let n = parts.points.len();
+        let mut springs = vec![[0.0; 3]; parts.springs.len()];
+        for (i, s) in parts.springs.iter() {
+            springs[i] = [s.rest_length, s.stiffness, s.damping];
+        }
+        let (anchor_slots, free_anchor_slots) = parts.anchors.slots();
+        let (diagnostics, warm_start) = parts.stepper.carried();
+        Self {
+            positions: parts.points.positions(),
+            velocities: parts.points.velocities(),
+            masses: parts.masses.masses().to_vec(),
+            pinned: (0..n)
+                .filter(|&i| parts.masses.is_pinned(i))
+                .map(|i| i as u32)
+                .collect(),
+            springs,
+            anchor_slots,
+            free_anchor_slots,
+            external: (0..parts.external.len())
+                .map(|i| parts.external.get(i))
+                .collect(),
+            pressure: parts.pressure.map(|p| (p.stiffness, p.rest_volume())),
+            diagnostics,
+            warm_start,
+        }
+    }
+
+    /// Puts this state back into `parts` (see [`Solver::restore`]): refused, with nothing
+    /// changed, where it does not fit them or holds bad values.
+    pub fn apply(&self, parts: StatePartsMut<'_>) -> Result<(), SolverError> {
+        let state = self;
+        let n = parts.points.len();
         let mismatch =
             |what: &'static str, found: usize, expected: usize| SolverError::PointCountMismatch {
                 what,
@@ -94,17 +160,17 @@ impl Solver {
                 return Err(mismatch(what, found, n));
             }
         }
-        if state.springs.len() != self.springs.len() {
+        if state.springs.len() != parts.springs.len() {
             return Err(mismatch(
                 "snapshot springs",
                 state.springs.len(),
-                self.springs.len(),
+                parts.springs.len(),
             ));
         }
         if !state.warm_start.is_empty() && state.warm_start.len() != n {
             return Err(mismatch("snapshot warm start", state.warm_start.len(), n));
         }
-        match (&self.pressure, state.pressure) {
+        match (&parts.pressure, state.pressure) {
             (None, None) => {}
             (Some(p), Some((_, volume))) if p.rest_volume().to_bits() == volume.to_bits() => {}
             _ => {
@@ -127,7 +193,7 @@ impl Solver {
         for &i in &state.pinned {
             masses.set_pinned(i as usize, true)?;
         }
-        let mut springs = self.springs.clone();
+        let mut springs = parts.springs.clone();
         springs.set_rest_lengths(|i| state.springs[i][0])?;
         springs.set_parameters(|i| (state.springs[i][1], state.springs[i][2]))?;
         let anchors = Anchors::from_slots(&state.anchor_slots, &state.free_anchor_slots, n)?;
@@ -135,21 +201,25 @@ impl Solver {
         for (i, f) in state.external.iter().enumerate() {
             external.set(i, *f)?;
         }
-        if let (Some(p), Some((stiffness, _))) = (&mut self.pressure, state.pressure) {
-            if !(stiffness.is_finite() && stiffness >= 0.0) {
+        let stiffness = match state.pressure {
+            Some((stiffness, _)) if !(stiffness.is_finite() && stiffness >= 0.0) => {
                 return Err(SolverError::InvalidConfig(
                     "the snapshot's gas stiffness must be finite and not negative",
                 ));
             }
+            pressure => pressure.map(|(stiffness, _)| stiffness),
+        };
+        if let (Some(p), Some(stiffness)) = (parts.pressure, stiffness) {
             p.stiffness = stiffness;
             p.revision = super::parts::next_revision();
         }
-        self.points = points;
-        self.masses = masses;
-        self.springs = springs;
-        self.anchors = anchors;
-        self.external = external;
-        self.stepper
+        *parts.points = points;
+        *parts.masses = masses;
+        *parts.springs = springs;
+        *parts.anchors = anchors;
+        *parts.external = external;
+        parts
+            .stepper
             .set_carried(state.diagnostics, &state.warm_start);
         Ok(())
     }

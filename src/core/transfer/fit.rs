@@ -4,16 +4,8 @@
 use glam::{DVec3, Vec3, Vec3A};
 use rayon::prelude::*;
 
+use super::pins::{PIN_BLEND, PIN_HOLD};
 use super::*;
-
-/// A dense point is held by the pins ([`Transfer::hold`]) where its nearest pinned
-/// neighbour is at most this many times as far as its nearest free one...
-pub const PIN_HOLD: f64 = 1.25;
-
-/// ...and between that and this many times, its free neighbours' weights rise smoothly from
-/// nothing to their full Gaussian weight, so that the drawn surface does not tear where the
-/// held part meets the free part.
-pub const PIN_BLEND: f64 = 2.5;
 
 /// Kinds of fit.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -41,6 +33,35 @@ impl Transfer {
         normals: &[Vec3],
         sim_rest: &[Vec3],
         config: TransferConfig,
+    ) -> Result<Self, TransferError> {
+        Self::build(rest, normals, sim_rest, config, true)
+    }
+
+    /// [`Self::new`] with `normals` taken as they are, where they are the unit normals of
+    /// another transfer ([`Self::rest_normals`]): normalising a unit vector again may move
+    /// its last bit, and a transfer rebuilt from a saved rest shape must be the same, bit for
+    /// bit. Normals further than 10⁻⁴ from unit length are refused.
+    pub(crate) fn with_unit_normals(
+        rest: &[Vec3],
+        normals: &[Vec3],
+        sim_rest: &[Vec3],
+        config: TransferConfig,
+    ) -> Result<Self, TransferError> {
+        if let Some(index) = normals.iter().position(|n| (n.length() - 1.0).abs() > 1e-4) {
+            return Err(TransferError::InvalidPoint {
+                which: "dense",
+                index,
+            });
+        }
+        Self::build(rest, normals, sim_rest, config, false)
+    }
+
+    fn build(
+        rest: &[Vec3],
+        normals: &[Vec3],
+        sim_rest: &[Vec3],
+        config: TransferConfig,
+        normalise: bool,
     ) -> Result<Self, TransferError> {
         if !(1..=MAX_TRANSFER_K).contains(&config.k) {
             return Err(TransferError::KOutOfRange(config.k));
@@ -88,7 +109,11 @@ impl Transfer {
             kinds: Vec::new(),
             pins: Pins::default(),
         };
-        let normals: Vec<Vec3> = normals.iter().map(|n| n.normalize()).collect();
+        let normals: Vec<Vec3> = if normalise {
+            normals.iter().map(|n| n.normalize()).collect()
+        } else {
+            normals.to_vec()
+        };
         transfer.extend(rest, &normals, &KnnIndex::build(sim_rest));
         Ok(transfer)
     }
@@ -128,73 +153,6 @@ impl Transfer {
             .extend((start..self.kinds.len()).filter(|&i| self.kinds[i].residual));
     }
 
-    /// Makes the dense points follow the pins. A dense point with a pinned neighbour is
-    /// *held* where its nearest pinned neighbour is at most [`PIN_HOLD`] times as far as its
-    /// nearest free one, or where `pins` names it (a pinned region drawn at the dense
-    /// resolution): its row is fitted again over its pinned neighbours alone, so that it
-    /// moves exactly as they do (not at all while they hold still; rigidly with them when
-    /// they are moved together, where they allow a full fit), whatever the free points
-    /// nearby do. Rows up to [`PIN_BLEND`] times as far weigh their free neighbours less, so
-    /// that the drawn surface does not tear at the pins' edge. Only rows whose neighbours'
-    /// pins or own name changed are fitted again; the result is the same, bit for bit, as a
-    /// transfer given these pins from the start. Returns how many rows were fitted again.
-    pub fn hold(&mut self, pins: &Pins) -> Result<usize, TransferError> {
-        let (n, rows) = (self.sim_rest.len(), self.rest.len());
-        if pins.simulation.len() != n {
-            return Err(TransferError::PinCount {
-                expected: n,
-                found: pins.simulation.len(),
-            });
-        }
-        if !pins.dense.is_empty() && pins.dense.len() != rows {
-            return Err(TransferError::PinCount {
-                expected: rows,
-                found: pins.dense.len(),
-            });
-        }
-        let pins = pins.normalised();
-        if pins == self.pins {
-            return Ok(0);
-        }
-        let was = std::mem::replace(&mut self.pins, pins);
-        let sim_changed: Vec<bool> = (0..n)
-            .map(|j| was.simulation(j) != self.pins.simulation(j))
-            .collect();
-        let k = self.k;
-        let job = RowFit {
-            rest: &self.rest,
-            normals: &self.normals,
-            sim: &self.sim_rest,
-            pins: &self.pins,
-            first: 0,
-            k,
-            bandwidth: self.config.bandwidth,
-        };
-        let wanted = |row: usize, nbrs: &[u32]| {
-            was.dense(row) != job.pins.dense(row) || nbrs.iter().any(|&j| sim_changed[j as usize])
-        };
-        let refit = match &mut self.neighbours {
-            Neighbours::Narrow(nb) => job.refit(nb, &mut self.coefficients, wanted),
-            Neighbours::Wide(nb) => job.refit(nb, &mut self.coefficients, wanted),
-        };
-        let mut count = 0;
-        for (kind, new) in self.kinds.iter_mut().zip(refit) {
-            if let Some(new) = new {
-                *kind = new;
-                count += 1;
-            }
-        }
-        self.residual_rows = (0..self.kinds.len())
-            .filter(|&i| self.kinds[i].residual)
-            .collect();
-        Ok(count)
-    }
-
-    /// The pins the dense points are held to ([`Self::hold`]).
-    pub fn pins(&self) -> &Pins {
-        &self.pins
-    }
-
     /// Which fit the dense points got.
     pub fn report(&self) -> FitReport {
         let mut report = FitReport::default();
@@ -211,59 +169,16 @@ impl Transfer {
     }
 }
 
-/// What [`Transfer::hold`] holds the dense points to.
-#[derive(Debug, Clone, Default, PartialEq, Eq)]
-pub struct Pins {
-    /// Per simulation point: whether it is pinned.
-    pub simulation: Vec<bool>,
-    /// Per dense point: whether it is held even where its nearest simulation point is free
-    /// (a pinned region, drawn at the dense resolution); empty: none is.
-    pub dense: Vec<bool>,
-}
-
-impl Pins {
-    /// Whether simulation point `j` is pinned.
-    pub fn simulation(&self, j: usize) -> bool {
-        self.simulation.get(j).copied().unwrap_or(false)
-    }
-
-    /// Whether dense point `i` is named held.
-    pub fn dense(&self, i: usize) -> bool {
-        self.dense.get(i).copied().unwrap_or(false)
-    }
-
-    /// Whether nothing is pinned.
-    pub fn is_empty(&self) -> bool {
-        !self.simulation.contains(&true)
-    }
-
-    /// The same pins with empty lists where nothing is pinned or named, so that equal pins
-    /// compare equal.
-    fn normalised(&self) -> Self {
-        if self.is_empty() {
-            return Self::default();
-        }
-        Self {
-            simulation: self.simulation.clone(),
-            dense: if self.dense.contains(&true) {
-                self.dense.clone()
-            } else {
-                Vec::new()
-            },
-        }
-    }
-}
-
 /// The fits of dense points (validated, unit normals) to the simulation points.
-struct RowFit<'a> {
-    rest: &'a [Vec3],
-    normals: &'a [Vec3],
-    sim: &'a [Vec3],
-    pins: &'a Pins,
+pub(super) struct RowFit<'a> {
+    pub(super) rest: &'a [Vec3],
+    pub(super) normals: &'a [Vec3],
+    pub(super) sim: &'a [Vec3],
+    pub(super) pins: &'a Pins,
     /// The row of `rest`'s first point.
-    first: usize,
-    k: usize,
-    bandwidth: f32,
+    pub(super) first: usize,
+    pub(super) k: usize,
+    pub(super) bandwidth: f32,
 }
 
 impl RowFit<'_> {
@@ -320,7 +235,7 @@ impl RowFit<'_> {
     }
 
     /// Fits again, from their stored neighbours, the rows `wanted` picks.
-    fn refit<I: NeighbourIndex>(
+    pub(super) fn refit<I: NeighbourIndex>(
         &self,
         neighbours: &mut [I],
         coefficients: &mut [f32],

@@ -71,8 +71,9 @@
 
 mod fit;
 mod frame;
+mod pins;
 
-pub use fit::Pins;
+pub use pins::{PIN_BLEND, PIN_HOLD, Pins};
 
 pub(crate) use frame::simd_displacements;
 use frame::simd_positions;

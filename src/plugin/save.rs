@@ -1,0 +1,447 @@
+//! Saved games: every named surface of a running app to a file, and back into an app that
+//! prepared the same surfaces (issue 32).
+//!
+//! A game names the surfaces it saves with [`SaveName`] and sends
+//! [`SaveGameMessage::Save`]; to load, it spawns the same surfaces with the same names
+//! (the same sources and settings), waits until they are [`SurfaceStatus::Ready`], and sends
+//! [`SaveGameMessage::Load`]. Each surface then goes on exactly as the saved one would have,
+//! bit for bit: its positions and velocities, masses and pins, springs with their plastic
+//! rest lengths and edited stiffness, anchors and grabs, external forces, gas, the stepper's
+//! settings, running totals and warm start, sleep, a scene's timeline, the dense surface
+//! (deformed points, resampled points, the resampler's spacings) and a baked rest shape.
+//! [`SaveGameOutcome`] reports how it went. A file that is not a saved game, is cut short
+//! or damaged, or does not fit the app's surfaces is refused with a [`SaveGameError`], and
+//! nothing in the app changes.
+//!
+//! Not saved: the game's own settings of a surface
+//! ([`SurfaceSettings`](super::SurfaceSettings), whether it is in view), its
+//! [`SurfaceHealth`](super::SurfaceHealth), work counters and timings, dense points a game
+//! named held itself ([`DenseCloud::hold_where`](crate::core::pipeline::DenseCloud::hold_where))
+//! on a surface never baked, and anything outside the surfaces (rapier bodies, the clock).
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use bevy::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use super::components::{
+    DenseSurface, SceneTimeline, SimulationPoints, SurfaceAnchors, SurfaceForces, SurfaceMasses,
+    SurfaceMaterial, SurfaceNetwork, SurfacePressure, SurfaceSleep, SurfaceSprings, SurfaceStatus,
+    SurfaceStepper,
+};
+use super::grab::{Grabs, HeldGrab};
+use crate::core::cloud::io::write_atomically;
+use crate::core::network::RestShape;
+use crate::core::pipeline::{DenseRest, DenseState};
+use crate::core::scene::TimelineState;
+use crate::core::solver::{
+    PointState, Pressure, SolverConfig, SolverState, SpringMaterial, StateParts, StatePartsMut,
+};
+
+/// The first bytes of a saved game (the format's name and version).
+pub const SAVED_GAME_MAGIC: &[u8; 8] = b"PSGAME1\n";
+
+/// The name a surface is saved and loaded under. Surfaces without one are not saved; a
+/// name must be unique among the surfaces saved.
+#[derive(Component, Reflect, Debug, Clone, PartialEq, Eq, Hash)]
+#[reflect(Component, Debug)]
+pub struct SaveName(pub String);
+
+/// Marks a surface baked since it was prepared, with the density it was baked with (a saved
+/// game carries its rest shape). Set by [`ModelMessage::Bake`](super::ModelMessage::Bake),
+/// removed when the surface is prepared again.
+#[derive(Component, Debug, Clone, Copy, PartialEq)]
+pub struct SurfaceBaked {
+    /// The density the bake measured masses with.
+    pub density: f32,
+}
+
+/// A request to save or load.
+#[derive(Message, Debug, Clone, PartialEq, Eq)]
+pub enum SaveGameMessage {
+    /// Writes every surface with a [`SaveName`] (and ready) to `path`, through a temporary
+    /// file renamed into place.
+    Save {
+        /// The file.
+        path: PathBuf,
+    },
+    /// Reads `path` and puts each saved surface back onto the ready surface of its name.
+    Load {
+        /// The file.
+        path: PathBuf,
+    },
+}
+
+/// How a [`SaveGameMessage`] went.
+#[derive(Message, Debug, Clone, PartialEq)]
+pub struct SaveGameOutcome {
+    /// The request.
+    pub request: SaveGameMessage,
+    /// The names of the surfaces saved or loaded, or why nothing was.
+    pub result: Result<Vec<String>, SaveGameError>,
+}
+
+/// Why a game could not be saved or loaded (nothing changed).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum SaveGameError {
+    /// The file could not be read or written.
+    #[error("{}: {message}", path.display())]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// What the system said.
+        message: String,
+    },
+    /// The file does not start as a saved game of this version does.
+    #[error("not a saved game of this version")]
+    NotASavedGame,
+    /// The file is cut short or damaged.
+    #[error("the saved game is damaged: {0}")]
+    Damaged(String),
+    /// Two surfaces to save have the same name.
+    #[error("two surfaces are named {0:?}")]
+    DuplicateName(String),
+    /// A saved surface has no surface of its name in the app.
+    #[error("no surface is named {0:?}")]
+    NoSurface(String),
+    /// The surface of that name is not ready (still preparing, or failed).
+    #[error("the surface {0:?} is not ready")]
+    NotReady(String),
+    /// The saved surface does not fit the surface of its name (other points, springs, gas,
+    /// settings), or holds bad values.
+    #[error("the saved surface {name:?} does not fit: {reason}")]
+    DoesNotFit {
+        /// The surface.
+        name: String,
+        /// Why.
+        reason: String,
+    },
+}
+
+/// One saved surface.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+struct SavedSurface {
+    name: String,
+    config: SolverConfig,
+    material: SpringMaterial,
+    solver: SolverState,
+    timeline: Option<TimelineState>,
+    dense: DenseState,
+    /// The rest shape of the last bake, if any.
+    baked: Option<Baked>,
+    asleep: bool,
+    still_for: f32,
+    grabs: Vec<(u64, HeldGrab)>,
+}
+
+/// What a bake made of a surface's rest: the network's and the dense surface's, and the
+/// density it measured with.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+struct Baked {
+    network: RestShape,
+    dense: DenseRest,
+    density: f32,
+}
+
+/// A saved game: its surfaces.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+struct SavedGame {
+    surfaces: Vec<SavedSurface>,
+}
+
+impl SavedGame {
+    fn to_bytes(&self) -> Vec<u8> {
+        let mut bytes = SAVED_GAME_MAGIC.to_vec();
+        bytes.extend(postcard::to_stdvec(self).expect("a saved game always encodes"));
+        bytes
+    }
+
+    fn from_bytes(bytes: &[u8]) -> Result<Self, SaveGameError> {
+        let body = bytes
+            .strip_prefix(SAVED_GAME_MAGIC.as_slice())
+            .ok_or(SaveGameError::NotASavedGame)?;
+        let (game, rest) = postcard::take_from_bytes::<Self>(body)
+            .map_err(|e| SaveGameError::Damaged(e.to_string()))?;
+        if !rest.is_empty() {
+            return Err(SaveGameError::Damaged(format!(
+                "{} bytes after the end",
+                rest.len()
+            )));
+        }
+        Ok(game)
+    }
+}
+
+/// What a saved game reads of a surface.
+type SaveParts = (
+    Entity,
+    &'static SaveName,
+    &'static SurfaceStatus,
+    (
+        &'static mut SimulationPoints,
+        &'static mut SurfaceMasses,
+        &'static mut SurfaceSprings,
+        &'static mut SurfaceAnchors,
+        &'static mut SurfaceForces,
+        Option<&'static mut SurfacePressure>,
+        &'static mut SurfaceStepper,
+    ),
+    (
+        &'static mut SurfaceNetwork,
+        &'static mut DenseSurface,
+        Option<&'static mut SceneTimeline>,
+        &'static mut SurfaceSleep,
+        &'static mut SurfaceMaterial,
+        Option<&'static SurfaceBaked>,
+    ),
+);
+
+/// Carries out the frame's save and load requests, in order.
+pub(crate) fn apply_saved_games(
+    mut requests: MessageReader<SaveGameMessage>,
+    mut outcomes: MessageWriter<SaveGameOutcome>,
+    mut surfaces: Query<SaveParts>,
+    mut grabs: ResMut<Grabs>,
+    mut commands: Commands,
+) {
+    for request in requests.read() {
+        let result = match request {
+            SaveGameMessage::Save { path } => save(path, &mut surfaces, &grabs),
+            SaveGameMessage::Load { path } => load(path, &mut surfaces, &mut grabs, &mut commands),
+        };
+        match &result {
+            Ok(names) => info!("point-springs: {request:?}: {} surfaces", names.len()),
+            Err(e) => error!("point-springs: {request:?} failed: {e}"),
+        }
+        outcomes.write(SaveGameOutcome {
+            request: request.clone(),
+            result,
+        });
+    }
+}
+
+/// Saves the named, ready surfaces to `path`.
+fn save(
+    path: &Path,
+    surfaces: &mut Query<SaveParts>,
+    grabs: &Grabs,
+) -> Result<Vec<String>, SaveGameError> {
+    let mut saved = Vec::new();
+    for (entity, name, status, solver, rest) in surfaces.iter() {
+        if !status.is_ready() {
+            continue;
+        }
+        let (points, masses, springs, anchors, forces, pressure, stepper) = solver;
+        let (network, dense, timeline, sleep, material, baked) = rest;
+        if saved.iter().any(|s: &SavedSurface| s.name == name.0) {
+            return Err(SaveGameError::DuplicateName(name.0.clone()));
+        }
+        let state = SolverState::capture(StateParts {
+            points,
+            masses,
+            springs,
+            anchors,
+            external: forces,
+            pressure: pressure.map(|p| &p.0),
+            stepper,
+        });
+        saved.push(SavedSurface {
+            name: name.0.clone(),
+            config: *stepper.config(),
+            material: material.0,
+            solver: state,
+            timeline: timeline.map(|t| t.state()),
+            dense: dense.state(),
+            baked: baked.map(|b| Baked {
+                network: network.rest_shape(),
+                dense: dense.rest(),
+                density: b.density,
+            }),
+            asleep: sleep.asleep,
+            still_for: sleep.still_for,
+            grabs: grabs.of_surface(entity),
+        });
+    }
+    let names = saved.iter().map(|s| s.name.clone()).collect();
+    let bytes = SavedGame { surfaces: saved }.to_bytes();
+    write_atomically(path, |out| out.write_all(&bytes)).map_err(|e| SaveGameError::Io {
+        path: path.to_owned(),
+        message: e.source.to_string(),
+    })?;
+    Ok(names)
+}
+
+/// The parts of one surface a load puts back, built before anything changes.
+struct Restored {
+    entity: Entity,
+    points: PointState,
+    masses: crate::core::solver::Masses,
+    springs: crate::core::solver::Springs,
+    anchors: crate::core::solver::Anchors,
+    forces: crate::core::solver::ExternalForces,
+    pressure: Option<Pressure>,
+    stepper: crate::core::solver::Stepper,
+    network: Option<Arc<crate::core::network::SpringNetwork>>,
+    dense: crate::core::pipeline::DenseCloud,
+    timeline: Option<crate::core::scene::Timeline>,
+    material: SpringMaterial,
+    baked: Option<f32>,
+    sleep: (bool, f32),
+    grabs: Vec<(u64, HeldGrab)>,
+}
+
+/// Reads `path` and puts every saved surface back onto the surface of its name: all of them
+/// or, on any error, none.
+fn load(
+    path: &Path,
+    surfaces: &mut Query<SaveParts>,
+    grabs: &mut Grabs,
+    commands: &mut Commands,
+) -> Result<Vec<String>, SaveGameError> {
+    let bytes = std::fs::read(path).map_err(|e| SaveGameError::Io {
+        path: path.to_owned(),
+        message: e.to_string(),
+    })?;
+    let game = SavedGame::from_bytes(&bytes)?;
+    let mut restored = Vec::with_capacity(game.surfaces.len());
+    for saved in &game.surfaces {
+        if restored
+            .iter()
+            .any(|r: &(String, Restored)| r.0 == saved.name)
+        {
+            return Err(SaveGameError::DuplicateName(saved.name.clone()));
+        }
+        let target = surfaces
+            .iter()
+            .find(|(_, name, ..)| name.0 == saved.name)
+            .ok_or_else(|| SaveGameError::NoSurface(saved.name.clone()))?;
+        if !target.2.is_ready() {
+            return Err(SaveGameError::NotReady(saved.name.clone()));
+        }
+        let parts =
+            rebuild(saved, target.0, surfaces).map_err(|reason| SaveGameError::DoesNotFit {
+                name: saved.name.clone(),
+                reason,
+            })?;
+        restored.push((saved.name.clone(), parts));
+    }
+    // Everything fits: put it in. Written past change detection (a restored surface must
+    // not look acted on: that would wake it), but for the dense surface (to be drawn anew).
+    for (_, r) in &mut restored {
+        let (_, _, _, solver, rest) = surfaces.get_mut(r.entity).expect("checked above");
+        let (mut points, mut masses, mut springs, mut anchors, mut forces, pressure, mut stepper) =
+            solver;
+        let (mut network, mut dense, timeline, mut sleep, mut material, _) = rest;
+        points.bypass_change_detection().0 = std::mem::take(&mut r.points);
+        masses.bypass_change_detection().0 = r.masses.clone();
+        springs.bypass_change_detection().0 = r.springs.clone();
+        anchors.bypass_change_detection().0 = r.anchors.clone();
+        forces.bypass_change_detection().0 = r.forces.clone();
+        if let (Some(mut p), Some(new)) = (pressure, r.pressure.take()) {
+            p.bypass_change_detection().0 = new;
+        }
+        stepper.bypass_change_detection().0 = r.stepper.clone();
+        if let Some(new) = r.network.take() {
+            network.bypass_change_detection().0 = new;
+        }
+        dense.0 = r.dense.clone();
+        if let (Some(mut t), Some(new)) = (timeline, r.timeline.take()) {
+            t.bypass_change_detection().0 = new;
+        }
+        let sleep = sleep.bypass_change_detection();
+        (sleep.asleep, sleep.still_for) = r.sleep;
+        material.bypass_change_detection().0 = r.material;
+        match r.baked {
+            Some(density) => commands.entity(r.entity).insert(SurfaceBaked { density }),
+            None => commands.entity(r.entity).remove::<SurfaceBaked>(),
+        };
+        grabs.forget_surface(r.entity);
+        for (key, held) in r.grabs.drain(..) {
+            grabs.hold(key, r.entity, held);
+        }
+    }
+    Ok(restored.into_iter().map(|(name, _)| name).collect())
+}
+
+/// The parts of surface `entity` with `saved` put back (on copies).
+fn rebuild(
+    saved: &SavedSurface,
+    entity: Entity,
+    surfaces: &Query<SaveParts>,
+) -> Result<Restored, String> {
+    let (_, _, _, solver, rest) = surfaces.get(entity).map_err(|e| e.to_string())?;
+    let (points, masses, springs, anchors, forces, pressure, stepper) = solver;
+    let (network, dense, timeline, _, _, _) = rest;
+    let mut r = Restored {
+        entity,
+        points: points.0.clone(),
+        masses: masses.0.clone(),
+        springs: springs.0.clone(),
+        anchors: anchors.0.clone(),
+        forces: forces.0.clone(),
+        pressure: pressure.map(|p| p.0.clone()),
+        stepper: stepper.0.clone(),
+        network: None,
+        dense: dense.0.clone(),
+        timeline: timeline.map(|t| t.0.clone()),
+        material: saved.material,
+        baked: saved.baked.as_ref().map(|b| b.density),
+        sleep: (saved.asleep, saved.still_for),
+        grabs: saved.grabs.clone(),
+    };
+    // A baked surface: its rest shape first, as the bake made it.
+    if let Some(b) = &saved.baked {
+        let baked = network
+            .with_rest_shape(b.network.clone())
+            .map_err(|e| format!("its baked rest shape: {e}"))?;
+        if let Some(gas) = &mut r.pressure {
+            let at_rest = PointState::new(&baked.positions).map_err(|e| e.to_string())?;
+            *gas = Pressure::new(baked.triangles.clone(), &at_rest, gas.stiffness)
+                .map_err(|e| e.to_string())?;
+        }
+        r.dense = dense.with_rest(&b.dense).map_err(|e| e.to_string())?;
+        r.network = Some(Arc::new(baked));
+    }
+    r.stepper
+        .set_config(saved.config)
+        .map_err(|e| e.to_string())?;
+    saved
+        .solver
+        .apply(StatePartsMut {
+            points: &mut r.points,
+            masses: &mut r.masses,
+            springs: &mut r.springs,
+            anchors: &mut r.anchors,
+            external: &mut r.forces,
+            pressure: r.pressure.as_mut(),
+            stepper: &mut r.stepper,
+        })
+        .map_err(|e| e.to_string())?;
+    // Plastic flow follows the material (a game may have changed it since preparing).
+    r.springs
+        .set_plasticity(r.material.plasticity())
+        .map_err(|e| format!("its material: {e}"))?;
+    match (&mut r.timeline, &saved.timeline) {
+        (Some(t), Some(state)) => t.restore(state).map_err(|e| e.to_string())?,
+        (None, None) => {}
+        _ => return Err("a scene's timeline on one side only".to_owned()),
+    }
+    r.dense.restore(&saved.dense).map_err(|e| e.to_string())?;
+    match &saved.baked {
+        Some(b) => r.dense.hold_rest(&r.masses, &b.dense),
+        None => r.dense.hold(&r.masses).map(|_| ()),
+    }
+    .map_err(|e| e.to_string())?;
+    if !(saved.still_for.is_finite() && saved.still_for >= 0.0) {
+        return Err("its time still is not a finite, non-negative number".to_owned());
+    }
+    for (key, held) in &saved.grabs {
+        if held.anchors().any(|id| r.anchors.get(id).is_none()) {
+            return Err(format!(
+                "grab {key} holds an anchor the surface does not have"
+            ));
+        }
+    }
+    Ok(r)
+}
