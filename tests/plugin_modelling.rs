@@ -608,5 +608,27 @@ fn a_saved_game_goes_on_bit_for_bit_in_a_fresh_app() {
         .collect();
     assert_eq!(results[0], Err(SaveGameError::NoSurface("sphere".into())));
     assert!(matches!(results[1], Err(SaveGameError::Io { .. })));
+    // A surface of another size under the saved name: refused after reading, nothing of
+    // either surface changed.
+    let mut other = floating(1200, 100);
+    other.config.pressure = Some(200.0);
+    let smaller = fresh
+        .world_mut()
+        .spawn((other, SaveName("sphere".into())))
+        .id();
+    settle(&mut fresh, &[smaller]);
+    fresh.update();
+    let before = (moving_bits(&fresh, again), moving_bits(&fresh, smaller));
+    fresh
+        .world_mut()
+        .write_message(SaveGameMessage::Load { path: file.clone() });
+    fresh.world_mut().resource_mut::<Time<Virtual>>().pause();
+    fresh.update();
+    let result = saved_outcomes(&mut fresh).remove(0).result;
+    assert!(
+        matches!(&result, Err(SaveGameError::DoesNotFit { name, .. }) if name == "sphere"),
+        "{result:?}"
+    );
+    assert!(before == (moving_bits(&fresh, again), moving_bits(&fresh, smaller)));
     std::fs::remove_dir_all(&dir).ok();
 }

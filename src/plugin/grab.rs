@@ -22,7 +22,7 @@
 use bevy::platform::collections::HashMap;
 use bevy::prelude::*;
 
-use crate::core::solver::{Anchor, AnchorId};
+use crate::core::solver::{Anchor, AnchorId, Anchors};
 
 use super::components::{SimulationPoints, SurfaceAnchors, SurfaceNetwork, SurfaceStatus};
 
@@ -106,6 +106,16 @@ impl HeldGrab {
     /// The anchors it holds.
     pub(crate) fn anchors(&self) -> impl Iterator<Item = AnchorId> + '_ {
         self.0.iter().map(|(id, _)| *id)
+    }
+
+    /// The same grab without the anchors `anchors` no longer has (a game removed them).
+    pub(crate) fn alive(self, anchors: &Anchors) -> Self {
+        Self(
+            self.0
+                .into_iter()
+                .filter(|(id, _)| anchors.get(*id).is_some())
+                .collect(),
+        )
     }
 }
 

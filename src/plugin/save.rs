@@ -13,12 +13,18 @@
 //! or damaged, or does not fit the app's surfaces is refused with a [`SaveGameError`], and
 //! nothing in the app changes.
 //!
-//! Not saved: the game's own settings of a surface
+//! Load a surface at least one tick after it became ready (a load in the frame it became
+//! ready is refused as [`SaveGameError::NotReady`]). A save of a surface never baked is
+//! refused onto one baked since it was prepared.
+//!
+//! Not saved: the surface's `Transform`, the game's own settings of a surface
 //! ([`SurfaceSettings`](super::SurfaceSettings), whether it is in view), its
 //! [`SurfaceHealth`](super::SurfaceHealth), work counters and timings, dense points a game
 //! named held itself ([`DenseCloud::hold_where`](crate::core::pipeline::DenseCloud::hold_where))
 //! on a surface never baked, and anything outside the surfaces (rapier bodies, the clock).
 
+use std::collections::HashMap;
+use std::io::Read;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
@@ -205,10 +211,15 @@ pub(crate) fn apply_saved_games(
     mut grabs: ResMut<Grabs>,
     mut commands: Commands,
 ) {
+    // What loads of this frame made of surfaces' bake marks (the commands that set them
+    // apply after this system), for a save after them.
+    let mut baked = HashMap::new();
     for request in requests.read() {
         let result = match request {
-            SaveGameMessage::Save { path } => save(path, &mut surfaces, &grabs),
-            SaveGameMessage::Load { path } => load(path, &mut surfaces, &mut grabs, &mut commands),
+            SaveGameMessage::Save { path } => save(path, &mut surfaces, &grabs, &baked),
+            SaveGameMessage::Load { path } => {
+                load(path, &mut surfaces, &mut grabs, &mut commands, &mut baked)
+            }
         };
         match &result {
             Ok(names) => info!("point-springs: {request:?}: {} surfaces", names.len()),
@@ -226,6 +237,7 @@ fn save(
     path: &Path,
     surfaces: &mut Query<SaveParts>,
     grabs: &Grabs,
+    loaded: &HashMap<Entity, Option<f32>>,
 ) -> Result<Vec<String>, SaveGameError> {
     let mut saved = Vec::new();
     for (entity, name, status, solver, rest) in surfaces.iter() {
@@ -234,6 +246,10 @@ fn save(
         }
         let (points, masses, springs, anchors, forces, pressure, stepper) = solver;
         let (network, dense, timeline, sleep, material, baked) = rest;
+        let baked = match loaded.get(&entity) {
+            Some(density) => *density,
+            None => baked.map(|b| b.density),
+        };
         if saved.iter().any(|s: &SavedSurface| s.name == name.0) {
             return Err(SaveGameError::DuplicateName(name.0.clone()));
         }
@@ -253,14 +269,19 @@ fn save(
             solver: state,
             timeline: timeline.map(|t| t.state()),
             dense: dense.state(),
-            baked: baked.map(|b| Baked {
+            baked: baked.map(|density| Baked {
                 network: network.rest_shape(),
                 dense: dense.rest(),
-                density: b.density,
+                density,
             }),
             asleep: sleep.asleep,
             still_for: sleep.still_for,
-            grabs: grabs.of_surface(entity),
+            // (An anchor a game removed from a grab is left out.)
+            grabs: grabs
+                .of_surface(entity)
+                .into_iter()
+                .map(|(key, held)| (key, held.alive(&anchors.0)))
+                .collect(),
         });
     }
     let names = saved.iter().map(|s| s.name.clone()).collect();
@@ -270,6 +291,27 @@ fn save(
         message: e.source.to_string(),
     })?;
     Ok(names)
+}
+
+/// The bytes of the file at `path`, once its first bytes say it is a saved game (a foreign
+/// file is not read whole).
+fn read_saved_game(path: &Path) -> Result<Vec<u8>, SaveGameError> {
+    let io = |e: std::io::Error| SaveGameError::Io {
+        path: path.to_owned(),
+        message: e.to_string(),
+    };
+    let mut file = std::fs::File::open(path).map_err(io)?;
+    let mut bytes = vec![0; SAVED_GAME_MAGIC.len()];
+    match file.read_exact(&mut bytes) {
+        Ok(()) if bytes == SAVED_GAME_MAGIC => {}
+        Ok(()) => return Err(SaveGameError::NotASavedGame),
+        Err(e) if e.kind() == std::io::ErrorKind::UnexpectedEof => {
+            return Err(SaveGameError::NotASavedGame);
+        }
+        Err(e) => return Err(io(e)),
+    }
+    file.read_to_end(&mut bytes).map_err(io)?;
+    Ok(bytes)
 }
 
 /// The parts of one surface a load puts back, built before anything changes.
@@ -298,12 +340,9 @@ fn load(
     surfaces: &mut Query<SaveParts>,
     grabs: &mut Grabs,
     commands: &mut Commands,
+    baked_marks: &mut HashMap<Entity, Option<f32>>,
 ) -> Result<Vec<String>, SaveGameError> {
-    let bytes = std::fs::read(path).map_err(|e| SaveGameError::Io {
-        path: path.to_owned(),
-        message: e.to_string(),
-    })?;
-    let game = SavedGame::from_bytes(&bytes)?;
+    let game = SavedGame::from_bytes(&read_saved_game(path)?)?;
     let mut restored = Vec::with_capacity(game.surfaces.len());
     for saved in &game.surfaces {
         if restored
@@ -312,19 +351,61 @@ fn load(
         {
             return Err(SaveGameError::DuplicateName(saved.name.clone()));
         }
-        let target = surfaces
-            .iter()
-            .find(|(_, name, ..)| name.0 == saved.name)
-            .ok_or_else(|| SaveGameError::NoSurface(saved.name.clone()))?;
-        if !target.2.is_ready() {
+        // (entity, ready, prepared this frame, baked with) of the surfaces of its name.
+        let named: Vec<(Entity, bool, bool, Option<f32>)> = surfaces
+            .iter_mut()
+            .filter(|(_, name, ..)| name.0 == saved.name)
+            .map(|(e, _, status, _, rest)| {
+                (
+                    e,
+                    status.is_ready(),
+                    rest.4.is_added(),
+                    rest.5.map(|b| b.density),
+                )
+            })
+            .collect();
+        let target = match named.as_slice() {
+            [] => return Err(SaveGameError::NoSurface(saved.name.clone())),
+            [one] => *one,
+            _ => return Err(SaveGameError::DuplicateName(saved.name.clone())),
+        };
+        // Ready, and ticked since: a surface prepared this frame still has its material's
+        // change to apply, which would overwrite the saved springs.
+        if !target.1 || target.2 {
             return Err(SaveGameError::NotReady(saved.name.clone()));
         }
-        let parts =
-            rebuild(saved, target.0, surfaces).map_err(|reason| SaveGameError::DoesNotFit {
-                name: saved.name.clone(),
-                reason,
-            })?;
+        let does_not_fit = |reason: String| SaveGameError::DoesNotFit {
+            name: saved.name.clone(),
+            reason,
+        };
+        let was_baked = baked_marks
+            .get(&target.0)
+            .copied()
+            .unwrap_or(target.3)
+            .is_some();
+        if was_baked && saved.baked.is_none() {
+            return Err(does_not_fit(
+                "the surface was baked since it was prepared, the saved one was not \
+                 (prepare it again first)"
+                    .to_owned(),
+            ));
+        }
+        let parts = rebuild(saved, target.0, surfaces).map_err(does_not_fit)?;
         restored.push((saved.name.clone(), parts));
+    }
+    // A saved grab's key must not be held on a surface this load leaves alone.
+    let loaded: Vec<Entity> = restored.iter().map(|(_, r)| r.entity).collect();
+    for (name, r) in &restored {
+        for (key, _) in &r.grabs {
+            if let Some((other, _)) = grabs.get(*key)
+                && !loaded.contains(&other)
+            {
+                return Err(SaveGameError::DoesNotFit {
+                    name: name.clone(),
+                    reason: format!("grab {key} is held on another surface ({other})"),
+                });
+            }
+        }
     }
     // Everything fits: put it in. Written past change detection (a restored surface must
     // not look acted on: that would wake it), but for the dense surface (to be drawn anew).
@@ -345,7 +426,10 @@ fn load(
         if let Some(new) = r.network.take() {
             network.bypass_change_detection().0 = new;
         }
+        let old = dense.revision();
         dense.0 = r.dense.clone();
+        // Uploads and caches that saw the old cloud must see a change.
+        dense.advance_revision_past(old);
         if let (Some(mut t), Some(new)) = (timeline, r.timeline.take()) {
             t.bypass_change_detection().0 = new;
         }
@@ -356,6 +440,7 @@ fn load(
             Some(density) => commands.entity(r.entity).insert(SurfaceBaked { density }),
             None => commands.entity(r.entity).remove::<SurfaceBaked>(),
         };
+        baked_marks.insert(r.entity, r.baked);
         grabs.forget_surface(r.entity);
         for (key, held) in r.grabs.drain(..) {
             grabs.hold(key, r.entity, held);
@@ -392,6 +477,9 @@ fn rebuild(
     };
     // A baked surface: its rest shape first, as the bake made it.
     if let Some(b) = &saved.baked {
+        if b.dense.simulation != b.network.positions {
+            return Err("its baked rest shapes disagree".to_owned());
+        }
         let baked = network
             .with_rest_shape(b.network.clone())
             .map_err(|e| format!("its baked rest shape: {e}"))?;
@@ -418,6 +506,7 @@ fn rebuild(
             stepper: &mut r.stepper,
         })
         .map_err(|e| e.to_string())?;
+    r.material.check()?;
     // Plastic flow follows the material (a game may have changed it since preparing).
     r.springs
         .set_plasticity(r.material.plasticity())

@@ -10,6 +10,7 @@ use std::time::{Duration, Instant};
 
 use bevy::prelude::*;
 use bevy_point_springs::core::cloud::shapes;
+use bevy_point_springs::core::solver::hold_still;
 use bevy_point_springs::prelude::*;
 use bevy_rapier3d::prelude::*;
 use rand::{RngExt, SeedableRng};
@@ -56,8 +57,14 @@ struct Tally {
     resets: u64,
     pauses: u64,
     hidden: u64,
+    pins: u64,
+    saves: u64,
+    loads: u64,
     fastest: f32,
     troubled_steps: u64,
+    /// Troubled steps of surfaces despawned or prepared again (their health starts over).
+    troubled_before: u64,
+    failed_requests: u64,
     resident_warm: u64,
     resident_end: u64,
 }
@@ -102,6 +109,52 @@ fn entities(app: &mut App) -> usize {
         .query_filtered::<Entity, Without<bevy::ecs::resource::IsResource>>()
         .iter(world)
         .count()
+}
+
+/// Pins the points of `e`'s top cap (rest y above 0.25) where they are, or frees them where
+/// some are pinned.
+fn toggle_pins(app: &mut App, e: Entity) {
+    let world = app.world_mut();
+    let rest = world.get::<SurfaceNetwork>(e).unwrap().0.positions.clone();
+    let (mut masses, mut points) = world
+        .query::<(&mut SurfaceMasses, &mut SimulationPoints)>()
+        .get_mut(world, e)
+        .unwrap();
+    let cap = |i: usize| rest[i].y > 0.25;
+    if masses.pinned() > 0 {
+        for i in 0..rest.len() {
+            masses.set_pinned(i, false).unwrap();
+        }
+    } else if (0..rest.len()).any(cap) {
+        hold_still(&mut masses, &mut points, cap).unwrap();
+    }
+}
+
+/// The troubled steps of surface `e` so far (which must not have failed).
+fn troubled(app: &App, e: Entity) -> u64 {
+    let status = app.world().get::<SurfaceStatus>(e);
+    assert!(
+        !matches!(status, Some(SurfaceStatus::Failed(_))),
+        "surface {e} failed: {status:?}"
+    );
+    app.world()
+        .get::<SurfaceHealth>(e)
+        .map_or(0, |h| h.troubled_steps)
+}
+
+/// Bakes and resets that failed since the last call (a request for a surface despawned or
+/// not ready by then is refused by design, and not counted), and surfaces whose preparation
+/// again failed.
+fn failed_requests(app: &mut App) -> u64 {
+    let world = app.world_mut();
+    let models = world
+        .resource_mut::<Messages<ModelOutcome>>()
+        .drain()
+        .filter(|o| o.result.as_ref().is_err_and(|e| !e.contains(" not ")))
+        .inspect(|o| eprintln!("{o:?}"))
+        .count();
+    let mut again = world.query_filtered::<Entity, With<PrepareAgainFailed>>();
+    (models + again.iter(world).count()) as u64
 }
 
 fn ready(app: &App, e: Entity) -> bool {
@@ -177,6 +230,9 @@ fn the_plugin_under_churn() {
     app.update();
     let baseline = entities(&mut app);
     let mut rng = rand::rngs::Xoshiro256PlusPlus::seed_from_u64(32);
+    let dir = std::env::temp_dir().join(format!("point-springs-soak-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let save = dir.join("soak.save");
     let (mut surfaces, mut balls) = (Vec::<Entity>::new(), Vec::<(Entity, u64)>::new());
     let mut grab: Option<Grab> = None;
     let mut tally = Tally::default();
@@ -188,7 +244,7 @@ fn the_plugin_under_churn() {
                 .get(rng.random_range(0..surfaces.len().max(1)))
                 .copied();
             let ready_target = target.filter(|&e| ready(&app, e));
-            match rng.random_range(0..10) {
+            match rng.random_range(0..12) {
                 0 | 1 if surfaces.len() < MAX_SURFACES => {
                     let at = Vec3::new(
                         rng.random_range(-2.0..2.0),
@@ -196,15 +252,17 @@ fn the_plugin_under_churn() {
                         rng.random_range(-2.0..2.0),
                     );
                     let (points, target) = (rng.random_range(800..1600), rng.random_range(60..140));
+                    let name = SaveName(format!("surface {}", tally.spawned));
                     let e = app
                         .world_mut()
-                        .spawn(surface(points, target, rng.random_bool(0.5), at))
+                        .spawn((surface(points, target, rng.random_bool(0.5), at), name))
                         .id();
                     surfaces.push(e);
                     tally.spawned += 1;
                 }
                 2 if surfaces.len() > 1 => {
                     let e = surfaces.swap_remove(rng.random_range(0..surfaces.len()));
+                    tally.troubled_before += troubled(&app, e);
                     app.world_mut().despawn(e);
                     tally.despawned += 1;
                 }
@@ -240,6 +298,7 @@ fn the_plugin_under_churn() {
                             simplify: SimplifyConfig::target(rng.random_range(60..140)),
                             ..default()
                         };
+                        tally.troubled_before += troubled(&app, e);
                         app.world_mut().entity_mut(e).insert(PrepareAgain(config));
                         tally.prepared_again += 1;
                     }
@@ -272,6 +331,23 @@ fn the_plugin_under_churn() {
                         tally.hidden += 1;
                     }
                 }
+                10 => {
+                    // Pin the top cap where it is, or free it again.
+                    if let Some(e) = ready_target {
+                        toggle_pins(&mut app, e);
+                        tally.pins += 1;
+                    }
+                }
+                11 => {
+                    // Save every surface, or load the last save (refused, and nothing
+                    // changed, where a saved surface is gone, not ready or baked since).
+                    let message = if rng.random_bool(0.5) {
+                        SaveGameMessage::Save { path: save.clone() }
+                    } else {
+                        SaveGameMessage::Load { path: save.clone() }
+                    };
+                    app.world_mut().write_message(message);
+                }
                 _ => {}
             }
         }
@@ -297,6 +373,19 @@ fn the_plugin_under_churn() {
             !gone
         });
         app.update();
+        tally.failed_requests += failed_requests(&mut app);
+        for outcome in app
+            .world_mut()
+            .resource_mut::<Messages<SaveGameOutcome>>()
+            .drain()
+        {
+            match (&outcome.request, outcome.result) {
+                (SaveGameMessage::Save { .. }, Ok(_)) => tally.saves += 1,
+                (SaveGameMessage::Load { .. }, Ok(_)) => tally.loads += 1,
+                (SaveGameMessage::Save { .. }, Err(e)) => panic!("a save failed: {e}"),
+                (SaveGameMessage::Load { .. }, Err(_)) => {}
+            }
+        }
         tick += 1;
         if tick % CHECK_GAP == 0 {
             let (fastest, troubled) = check(&mut app, tick);
@@ -328,7 +417,8 @@ fn the_plugin_under_churn() {
     let mib = |b: u64| b as f64 / (1024.0 * 1024.0);
     println!(
         "ECS soak: {} ticks in {:.1} s; {} surfaces spawned, {} despawned, {} grabs, {} balls, \
-         {} prepared again, {} bakes, {} resets, {} pauses, {} hidden; fastest {:.2} m/s; \
+         {} prepared again, {} bakes, {} resets, {} pauses, {} hidden, {} pin changes, {} saves, \
+         {} loads; fastest {:.2} m/s; \
          {} troubled steps; resident {:.1} MiB after warm-up, {:.1} MiB at the end; \
          entities {baseline} before, {left} after; rapier bodies after: {bodies}",
         tally.ticks,
@@ -342,13 +432,25 @@ fn the_plugin_under_churn() {
         tally.resets,
         tally.pauses,
         tally.hidden,
+        tally.pins,
+        tally.saves,
+        tally.loads,
         tally.fastest,
         tally.troubled_steps,
         mib(tally.resident_warm),
         mib(tally.resident_end),
     );
+    std::fs::remove_dir_all(&dir).ok();
     assert_eq!(left, baseline, "entities left behind");
-    assert_eq!(tally.troubled_steps, 0, "a surface's guard stepped in");
+    assert_eq!(
+        tally.troubled_steps + tally.troubled_before,
+        0,
+        "a surface's guard stepped in"
+    );
+    assert_eq!(
+        tally.failed_requests, 0,
+        "a bake, reset or preparation failed"
+    );
     assert_eq!(bodies, 1, "rapier bodies left behind (the floor stays)");
     if tally.ticks > WARM_UP {
         assert!(

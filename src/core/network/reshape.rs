@@ -103,7 +103,7 @@ impl SpringNetwork {
         }
         if let Some(i) = (0..n).find(|&i| {
             !(shape.positions[i].is_finite()
-                && shape.normals[i].is_finite()
+                && (shape.normals[i].length() - 1.0).abs() < 1e-3
                 && shape.masses[i] > 0.0
                 && shape.masses[i].is_finite())
         }) {

@@ -66,7 +66,7 @@ pub struct DenseRest {
     pub normals: Vec<Vec3>,
     /// Rest positions of the simulation points the transfer follows.
     pub simulation: Vec<Vec3>,
-    /// The dense points named held ([`Pins::dense`]; inserted points included; empty: none).
+    /// The dense points named held ([`Pins::dense`]; none beyond the list's end).
     pub held: Vec<bool>,
 }
 
@@ -113,10 +113,7 @@ impl DenseCloud {
         if masses.revision == self.pins_revision {
             return Ok(false);
         }
-        let mut dense = self.transfer.pins().dense.clone();
-        if !dense.is_empty() {
-            dense.resize(self.transfer.len(), false);
-        }
+        let dense = self.transfer.pins().dense.clone();
         self.hold_pins(masses, dense)
     }
 
@@ -281,11 +278,13 @@ impl DenseCloud {
     /// [`Self::hold`] with `masses`' pins and the dense points `rest` names held (after
     /// [`Self::with_rest`] and [`Self::restore`]).
     pub fn hold_rest(&mut self, masses: &Masses, rest: &DenseRest) -> Result<(), TransferError> {
-        let mut held = rest.held.clone();
-        if !held.is_empty() {
-            held.resize(self.transfer.len(), false);
-        }
-        self.hold_pins(masses, held).map(|_| ())
+        self.hold_pins(masses, rest.held.clone()).map(|_| ())
+    }
+
+    /// Makes the revision larger than both its own and `other` (a cloud put in place of one
+    /// at revision `other`, whose uploads and caches must see a change).
+    pub fn advance_revision_past(&mut self, other: u64) {
+        self.revision = self.revision.max(other) + 1;
     }
 
     /// Changes each time the positions or normals do (for uploads).
@@ -391,9 +390,7 @@ impl DenseCloud {
             &sim.positions(),
             self.transfer.config(),
         )?;
-        if !self.transfer.pins().is_empty() {
-            transfer.hold(self.transfer.pins())?;
-        }
+        transfer.hold(self.transfer.pins())?;
         *self = Self {
             revision: self.revision + 1,
             inserted: self.inserted,

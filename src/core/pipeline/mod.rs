@@ -118,25 +118,7 @@ impl SurfaceConfig {
         if self.pressure.is_some_and(|k| !(k.is_finite() && k >= 0.0)) {
             return invalid("pressure must be finite and not negative");
         }
-        let m = &self.material;
-        if !(m.density > 0.0 && m.density.is_finite()) {
-            return invalid("material.density must be positive and finite");
-        }
-        for (name, v) in [
-            ("stretch_stiffness", m.stretch_stiffness),
-            ("bend_stiffness", m.bend_stiffness),
-            ("stretch_damping", m.stretch_damping),
-            ("bend_damping", m.bend_damping),
-        ] {
-            if !(v.is_finite() && v >= 0.0) {
-                return Err(PrepareError::Invalid(format!(
-                    "material.{name} must be finite and not negative, got {v}"
-                )));
-            }
-        }
-        if let Err(e) = m.plasticity().validate() {
-            return Err(PrepareError::Invalid(format!("material: {e}")));
-        }
+        self.material.check().map_err(PrepareError::Invalid)?;
         Ok(())
     }
 }

@@ -285,6 +285,29 @@ pub struct SpringMaterial {
 }
 
 impl SpringMaterial {
+    /// Checks every number: the density positive and finite, stiffness and damping finite
+    /// and not negative, the plasticity valid. The error names the field.
+    pub fn check(&self) -> Result<(), String> {
+        if !(self.density > 0.0 && self.density.is_finite()) {
+            return Err("material.density must be positive and finite".to_owned());
+        }
+        for (name, v) in [
+            ("stretch_stiffness", self.stretch_stiffness),
+            ("bend_stiffness", self.bend_stiffness),
+            ("stretch_damping", self.stretch_damping),
+            ("bend_damping", self.bend_damping),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(format!(
+                    "material.{name} must be finite and not negative, got {v}"
+                ));
+            }
+        }
+        self.plasticity()
+            .validate()
+            .map_err(|e| format!("material: {e}"))
+    }
+
     /// The material's plastic behaviour.
     pub fn plasticity(&self) -> Plasticity {
         Plasticity {

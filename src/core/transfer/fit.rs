@@ -267,6 +267,8 @@ impl RowFit<'_> {
         let ratio = match (first(true), first(false)) {
             (None, _) => f64::INFINITY,
             (Some(_), None) => 0.0,
+            // (A pinned neighbour at the point itself holds it, whatever lies there too.)
+            (Some(a), _) if distance(a) == 0.0 => 0.0,
             (Some(a), Some(b)) => f64::from(distance(a).sqrt()) / f64::from(distance(b).sqrt()),
         };
         let held = ratio.is_finite() && (ratio <= PIN_HOLD || self.pins.dense(row));

@@ -16,10 +16,11 @@ pub const PIN_BLEND: f64 = 2.5;
 /// What [`Transfer::hold`] holds the dense points to.
 #[derive(Debug, Clone, Default, PartialEq, Eq)]
 pub struct Pins {
-    /// Per simulation point: whether it is pinned.
+    /// Per simulation point: whether it is pinned (empty: none is).
     pub simulation: Vec<bool>,
     /// Per dense point: whether it is held even where its nearest simulation point is free
-    /// (a pinned region, drawn at the dense resolution); empty: none is.
+    /// (a pinned region, drawn at the dense resolution); none beyond the list's end. Kept
+    /// while no simulation point is pinned, for when one is again.
     pub dense: Vec<bool>,
 }
 
@@ -39,20 +40,21 @@ impl Pins {
         !self.simulation.contains(&true)
     }
 
-    /// The same pins with empty lists where nothing is pinned or named, so that equal pins
-    /// compare equal.
-    fn normalised(&self) -> Self {
-        if self.is_empty() {
-            return Self::default();
+    /// The same pins with empty lists where nothing is pinned or named, and the names as
+    /// long as the `rows` dense points (a shorter list names none beyond its end), so that
+    /// equal pins compare equal.
+    fn normalised(&self, rows: usize) -> Self {
+        let simulation = if self.is_empty() {
+            Vec::new()
+        } else {
+            self.simulation.clone()
+        };
+        let mut dense = Vec::new();
+        if self.dense.contains(&true) {
+            dense.clone_from(&self.dense);
+            dense.resize(rows, false);
         }
-        Self {
-            simulation: self.simulation.clone(),
-            dense: if self.dense.contains(&true) {
-                self.dense.clone()
-            } else {
-                Vec::new()
-            },
-        }
+        Self { simulation, dense }
     }
 }
 
@@ -69,19 +71,19 @@ impl Transfer {
     /// transfer given these pins from the start. Returns how many rows were fitted again.
     pub fn hold(&mut self, pins: &Pins) -> Result<usize, TransferError> {
         let (n, rows) = (self.sim_rest.len(), self.rest.len());
-        if pins.simulation.len() != n {
+        if !pins.simulation.is_empty() && pins.simulation.len() != n {
             return Err(TransferError::PinCount {
                 expected: n,
                 found: pins.simulation.len(),
             });
         }
-        if !pins.dense.is_empty() && pins.dense.len() != rows {
+        if pins.dense.len() > rows {
             return Err(TransferError::PinCount {
                 expected: rows,
                 found: pins.dense.len(),
             });
         }
-        let pins = pins.normalised();
+        let pins = pins.normalised(rows);
         if pins == self.pins {
             return Ok(0);
         }

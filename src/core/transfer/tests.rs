@@ -211,3 +211,32 @@ fn named_dense_points_are_held_where_a_pinned_neighbour_is() {
         assert!(pos[i].distance(p[i]) < 2e-6, "{i}");
     }
 }
+
+#[test]
+fn rows_added_under_pins_match_rows_built_then_held() {
+    // Resampling adds rows to a transfer already held to its pins: they must be what a
+    // transfer built with all the rows and then held gives, bit for bit.
+    let (p, n, sim, pinned) = pinned_sphere();
+    let pins = Pins {
+        simulation: pinned,
+        dense: Vec::new(),
+    };
+    let config = TransferConfig::default();
+    let mut whole = Transfer::new(&p, &n, &sim, config).unwrap();
+    whole.hold(&pins).unwrap();
+    let split = 2000;
+    let mut grown = Transfer::new(&p[..split], &n[..split], &sim, config).unwrap();
+    grown.hold(&pins).unwrap();
+    // (extend takes unit normals, as the resampler hands them; new() normalises its own.)
+    let unit: Vec<Vec3> = n.iter().map(|v| v.normalize()).collect();
+    grown.extend(&p[split..], &unit[split..], &KnnIndex::build(&sim));
+    let bits = |t: &Transfer| -> Vec<u32> { t.coefficients.iter().map(|c| c.to_bits()).collect() };
+    assert_eq!(bits(&grown), bits(&whole));
+    let indices = |t: &Transfer| match &t.neighbours {
+        Neighbours::Narrow(v) => v.iter().map(|&i| u32::from(i)).collect::<Vec<_>>(),
+        Neighbours::Wide(v) => v.clone(),
+    };
+    assert_eq!(indices(&grown), indices(&whole));
+    assert_eq!(grown.residual_rows, whole.residual_rows);
+    assert_eq!(grown.report(), whole.report());
+}
