@@ -37,7 +37,7 @@ use super::components::{
     SurfaceStepper,
 };
 use super::grab::{Grabs, HeldGrab};
-use crate::core::cloud::io::write_atomically;
+use crate::core::cloud::io::{TaggedError, decode_tagged, encode_tagged, write_atomically};
 use crate::core::network::RestShape;
 use crate::core::pipeline::{DenseRest, DenseState};
 use crate::core::scene::TimelineState;
@@ -158,24 +158,14 @@ struct SavedGame {
 
 impl SavedGame {
     fn to_bytes(&self) -> Vec<u8> {
-        let mut bytes = SAVED_GAME_MAGIC.to_vec();
-        bytes.extend(postcard::to_stdvec(self).expect("a saved game always encodes"));
-        bytes
+        encode_tagged(self, SAVED_GAME_MAGIC)
     }
 
     fn from_bytes(bytes: &[u8]) -> Result<Self, SaveGameError> {
-        let body = bytes
-            .strip_prefix(SAVED_GAME_MAGIC.as_slice())
-            .ok_or(SaveGameError::NotASavedGame)?;
-        let (game, rest) = postcard::take_from_bytes::<Self>(body)
-            .map_err(|e| SaveGameError::Damaged(e.to_string()))?;
-        if !rest.is_empty() {
-            return Err(SaveGameError::Damaged(format!(
-                "{} bytes after the end",
-                rest.len()
-            )));
-        }
-        Ok(game)
+        decode_tagged(bytes, SAVED_GAME_MAGIC).map_err(|e| match e {
+            TaggedError::Foreign => SaveGameError::NotASavedGame,
+            TaggedError::Damaged(why) => SaveGameError::Damaged(why),
+        })
     }
 }
 

@@ -19,7 +19,7 @@ use serde::{Deserialize, Serialize};
 use super::timeline::TimelineState;
 use super::{Scene, SceneError, SceneRun};
 use crate::core::PointCloud;
-use crate::core::cloud::io::write_atomically;
+use crate::core::cloud::io::{TaggedError, decode_tagged, encode_tagged, write_atomically};
 use crate::core::pipeline::DenseState;
 use crate::core::solver::{SolverError, SolverState};
 use crate::core::transfer::TransferError;
@@ -88,27 +88,16 @@ pub enum SnapshotError {
 impl Snapshot {
     /// The file's bytes: [`SNAPSHOT_MAGIC`], then the snapshot.
     pub fn to_bytes(&self) -> Vec<u8> {
-        let mut bytes = SNAPSHOT_MAGIC.to_vec();
-        // Encoding into a growing Vec fails only where serde would (no type here can).
-        bytes.extend(postcard::to_stdvec(self).expect("a snapshot always encodes"));
-        bytes
+        encode_tagged(self, SNAPSHOT_MAGIC)
     }
 
     /// Decodes a snapshot file's bytes. Anything but a whole snapshot of this version is an
     /// error; the decoder allocates no more than the bytes can fill.
     pub fn from_bytes(bytes: &[u8]) -> Result<Self, SnapshotError> {
-        let body = bytes
-            .strip_prefix(SNAPSHOT_MAGIC.as_slice())
-            .ok_or(SnapshotError::NotASnapshot)?;
-        let (snapshot, rest) = postcard::take_from_bytes::<Self>(body)
-            .map_err(|e| SnapshotError::Damaged(e.to_string()))?;
-        if !rest.is_empty() {
-            return Err(SnapshotError::Damaged(format!(
-                "{} bytes after the end",
-                rest.len()
-            )));
-        }
-        Ok(snapshot)
+        decode_tagged(bytes, SNAPSHOT_MAGIC).map_err(|e| match e {
+            TaggedError::Foreign => SnapshotError::NotASnapshot,
+            TaggedError::Damaged(why) => SnapshotError::Damaged(why),
+        })
     }
 
     /// Writes the snapshot to `path` through a temporary file renamed into place: a failed

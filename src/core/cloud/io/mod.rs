@@ -348,6 +348,42 @@ fn temp_beside(path: &Path, suffix: &str) -> std::io::Result<tempfile::NamedTemp
     builder.tempfile_in(dir)
 }
 
+/// The bytes of a tagged binary file: `magic` (its format's name and version), then `value`
+/// in postcard's encoding (snapshots, saved games).
+pub fn encode_tagged<T: serde::Serialize>(value: &T, magic: &[u8]) -> Vec<u8> {
+    let mut bytes = magic.to_vec();
+    // Encoding into a growing Vec fails only where serde would (no type written so can).
+    bytes.extend(postcard::to_stdvec(value).expect("the value always encodes"));
+    bytes
+}
+
+/// Why [`decode_tagged`] refused the bytes.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum TaggedError {
+    /// They do not start with the format's magic bytes.
+    Foreign,
+    /// They are cut short, damaged, or go on after the value.
+    Damaged(String),
+}
+
+/// Decodes what [`encode_tagged`] wrote: anything but `magic` and one whole value is an
+/// error, and the decoder allocates no more than the bytes can fill.
+pub fn decode_tagged<T: serde::de::DeserializeOwned>(
+    bytes: &[u8],
+    magic: &[u8],
+) -> Result<T, TaggedError> {
+    let body = bytes.strip_prefix(magic).ok_or(TaggedError::Foreign)?;
+    let (value, rest) =
+        postcard::take_from_bytes::<T>(body).map_err(|e| TaggedError::Damaged(e.to_string()))?;
+    if !rest.is_empty() {
+        return Err(TaggedError::Damaged(format!(
+            "{} bytes after the end",
+            rest.len()
+        )));
+    }
+    Ok(value)
+}
+
 /// Writes a file through `write` into a temporary file in `path`'s directory, flushed to
 /// disk, then renamed to `path`; on any failure the temporary file is removed and `path` is
 /// untouched.
