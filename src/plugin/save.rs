@@ -38,11 +38,12 @@ use super::components::{
 };
 use super::grab::{Grabs, HeldGrab};
 use crate::core::cloud::io::{TaggedError, decode_tagged, encode_tagged, write_atomically};
-use crate::core::network::RestShape;
-use crate::core::pipeline::{DenseRest, DenseState};
-use crate::core::scene::TimelineState;
+use crate::core::network::{RestShape, SpringNetwork};
+use crate::core::pipeline::{DenseCloud, DenseRest, DenseState};
+use crate::core::scene::{Timeline, TimelineState};
 use crate::core::solver::{
-    PointState, Pressure, SolverConfig, SolverState, SpringMaterial, StateParts, StatePartsMut,
+    Anchors, ExternalForces, Masses, PointState, Pressure, SolverConfig, SolverState,
+    SpringMaterial, Springs, StateParts, StatePartsMut, Stepper,
 };
 
 /// The first bytes of a saved game (the format's name and version).
@@ -308,15 +309,15 @@ fn read_saved_game(path: &Path) -> Result<Vec<u8>, SaveGameError> {
 struct Restored {
     entity: Entity,
     points: PointState,
-    masses: crate::core::solver::Masses,
-    springs: crate::core::solver::Springs,
-    anchors: crate::core::solver::Anchors,
-    forces: crate::core::solver::ExternalForces,
+    masses: Masses,
+    springs: Springs,
+    anchors: Anchors,
+    forces: ExternalForces,
     pressure: Option<Pressure>,
-    stepper: crate::core::solver::Stepper,
-    network: Option<Arc<crate::core::network::SpringNetwork>>,
-    dense: crate::core::pipeline::DenseCloud,
-    timeline: Option<crate::core::scene::Timeline>,
+    stepper: Stepper,
+    network: Option<Arc<SpringNetwork>>,
+    dense: DenseCloud,
+    timeline: Option<Timeline>,
     material: SpringMaterial,
     baked: Option<f32>,
     sleep: (bool, f32),

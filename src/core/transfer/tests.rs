@@ -201,6 +201,18 @@ fn named_dense_points_are_held_where_a_pinned_neighbour_is() {
     })
     .unwrap();
     assert!(t.report().held > by_nearest);
+    // A list of names shorter than the rows (rows added since) names none beyond its end.
+    let mut shorter = t.clone();
+    let mut names: Vec<bool> = p.iter().map(|x| x.y < -0.45).collect();
+    names.truncate(p.len() - 100);
+    assert!(
+        shorter
+            .hold(&Pins {
+                simulation: pinned.clone(),
+                dense: names,
+            })
+            .is_ok()
+    );
     let disp: Vec<Vec3> = sim
         .iter()
         .zip(&pinned)
