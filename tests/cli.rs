@@ -723,3 +723,39 @@ fn bench_network_reports_each_level() {
     ]);
     assert!(!bad.status.success());
 }
+
+#[test]
+fn bench_crowd_steps_every_surface_with_the_tolerance_asked_for() {
+    let args = [
+        "bench",
+        "crowd",
+        "--surfaces",
+        "3",
+        "--dense",
+        "300",
+        "--sim",
+        "40",
+        "--ticks",
+        "6",
+        "--json",
+    ];
+    let default = run_json(&args);
+    assert_eq!(default["surfaces"], 3);
+    assert_eq!(default["integrator"], "implicit-euler");
+    assert_eq!(default["guard_trips"], 0);
+    assert_eq!(default["troubled_surfaces"], 0);
+    let parts = ["ms_forces", "ms_stepping", "ms_transfer"].map(|k| default[k].as_f64().unwrap());
+    let tick = default["ms_tick"].as_f64().unwrap();
+    assert!((parts.iter().sum::<f64>() - tick).abs() <= 1e-9 * tick.max(1.0));
+    // A tighter tolerance takes more iterations on the same scene.
+    let tight = run_json(&[&args[..], &["--cg-tolerance", "1e-7"]].concat());
+    assert_eq!(tight["cg_tolerance"].as_f64().unwrap() as f32, 1e-7);
+    assert!(
+        tight["cg_per_step"].as_f64().unwrap() > default["cg_per_step"].as_f64().unwrap(),
+        "{tight} against {default}"
+    );
+    for bad in [&["--cg-tolerance", "1"][..], &["--surfaces", "0"]] {
+        let out = run(&[&args[..], bad].concat());
+        assert_eq!(out.status.code(), Some(2), "{bad:?}");
+    }
+}

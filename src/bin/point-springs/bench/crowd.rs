@@ -45,6 +45,10 @@ pub struct Args {
     /// Ticks timed (after a warm-up of the same length).
     #[arg(long, default_value_t = 120)]
     ticks: usize,
+    /// Relative residual at which implicit Euler's conjugate gradient stops (default: the
+    /// solver's default), to weigh speed against accuracy.
+    #[arg(long)]
+    cg_tolerance: Option<f32>,
     #[command(flatten)]
     json: JsonFlag,
 }
@@ -71,6 +75,8 @@ struct CrowdReport {
     sim_points: usize,
     /// The integrator the surfaces step with.
     integrator: String,
+    /// Implicit Euler's CG tolerance.
+    cg_tolerance: f32,
     /// Ticks timed.
     ticks: usize,
     /// Forces, stepping and transfer of every surface, per tick.
@@ -97,8 +103,8 @@ impl fmt::Display for CrowdReport {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         writeln!(
             f,
-            "crowd        {} spheres of {} dense and {} simulation points ({})",
-            self.surfaces, self.dense_points, self.sim_points, self.integrator
+            "crowd        {} spheres of {} dense and {} simulation points ({}, CG tolerance {:e})",
+            self.surfaces, self.dense_points, self.sim_points, self.integrator, self.cg_tolerance
         )?;
         writeln!(
             f,
@@ -146,11 +152,17 @@ pub fn run(args: &Args) -> Result<(), Failure> {
     }
     let mut app = ecs_app(DT, false);
     let cloud = fibonacci_sphere(args.dense, args.radius);
-    let config = SurfaceConfig {
+    let mut config = SurfaceConfig {
         simplify: SimplifyConfig::target(args.sim),
         pressure: Some(args.pressure),
         ..SurfaceConfig::default()
     };
+    if let Some(tolerance) = args.cg_tolerance {
+        config.solver.cg_tolerance = tolerance;
+    }
+    config
+        .validate()
+        .map_err(|e| Failure::bad_input(e.to_string()))?;
     let side = (args.surfaces as f32).sqrt().ceil() as usize;
     let entities: Vec<Entity> = (0..args.surfaces)
         .map(|i| {
@@ -202,6 +214,7 @@ pub fn run(args: &Args) -> Result<(), Failure> {
         dense_points: args.dense,
         sim_points: args.sim,
         integrator,
+        cg_tolerance: config.solver.cg_tolerance,
         ticks: clock.timed,
         ms_tick: tick,
         ms_forces: forces,
