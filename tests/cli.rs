@@ -541,7 +541,7 @@ fn bench_scale_reports_every_configuration_that_fits() {
 }
 
 #[test]
-fn bench_convergence_runs_every_problem_to_equilibrium_with_both_materials() {
+fn bench_convergence_runs_every_problem_to_equilibrium_with_every_material() {
     let stem = scratch("convergence");
     let v = run_json(&[
         "bench",
@@ -555,8 +555,8 @@ fn bench_convergence_runs_every_problem_to_equilibrium_with_both_materials() {
         "--json",
     ]);
     let rows = v["rows"].as_array().expect("one row per run");
-    // Four problems, two materials, two levels (sorted, the finest last).
-    assert_eq!(rows.len(), 16);
+    // Four problems, three materials, two levels (sorted, the finest last).
+    assert_eq!(rows.len(), 24);
     for pair in rows.chunks(2) {
         let f = |r: &serde_json::Value, key: &str| r[key].as_f64().unwrap();
         assert_eq!(pair[0]["problem"], pair[1]["problem"]);
@@ -568,11 +568,28 @@ fn bench_convergence_runs_every_problem_to_equilibrium_with_both_materials() {
             assert!(f(r, "sag") > 0.0 && f(r, "sag") < 1.0, "{r}");
         }
     }
-    let units: Vec<&str> = rows.iter().map(|r| r["units"].as_str().unwrap()).collect();
-    assert_eq!(&units[..4], ["per_spring", "per_spring", "sheet", "sheet"]);
+    let materials: Vec<&str> = rows
+        .iter()
+        .map(|r| r["material"].as_str().unwrap())
+        .collect();
+    assert_eq!(
+        &materials[..6],
+        [
+            "per_spring",
+            "per_spring",
+            "sheet",
+            "sheet",
+            "hinges",
+            "hinges"
+        ]
+    );
     // The chart, twice; the SVG carries its text.
     let svg = std::fs::read_to_string(stem.with_extension("svg")).unwrap();
-    assert!(svg.contains("simulation points") && svg.contains("Shell, sheet"));
+    assert!(
+        svg.contains("simulation points")
+            && svg.contains("Shell, sheet")
+            && svg.contains("Shell, hinges")
+    );
     let png = std::fs::metadata(stem.with_extension("png")).unwrap();
     assert!(png.len() > 10_000, "{png:?}");
     let out = run(&["bench", "convergence", "--fractions", "0", "--steps", "1"]);

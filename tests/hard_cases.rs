@@ -9,7 +9,10 @@ use bevy_point_springs::core::cloud::shapes::{fibonacci_sphere, square_sheet, wi
 use bevy_point_springs::core::pipeline::PrepareError;
 use bevy_point_springs::core::scene::{Pull, Region, Scene, SceneError};
 use bevy_point_springs::core::simplify::SimplifyConfig;
-use bevy_point_springs::core::solver::{Integrator, MaterialUnits, SolverConfig, SpringMaterial};
+use bevy_point_springs::core::solver::{
+    BendingModel, HingeSpec, Integrator, MaterialUnits, Solver, SolverConfig, SolverError,
+    SpringMaterial,
+};
 use glam::Vec3;
 use rand::{RngExt, SeedableRng};
 
@@ -616,4 +619,91 @@ fn a_stiff_hat_under_explicit_euler_falls_back_to_implicit() {
         (moved - implicit).abs() < 0.05 * implicit,
         "{moved} vs {implicit}"
     );
+}
+
+// ---------------------------------------------------------------------------------------
+// Bending on hinges (issue 33): folds to 180°, a crumpling poke, a hinge of no area.
+
+/// The sheet of [`a_flat_sheet_sags_between_its_pinned_edges`] on hinges (θ̄ = 0 everywhere),
+/// its left third pinned.
+fn hinged_sheet(steps: usize) -> Scene {
+    let mut s = scene(Some(300), steps);
+    s.material.bending = BendingModel::Hinges;
+    s.material.bending_modulus = 0.05;
+    s.pins = vec![Region::Box {
+        min: Vec3::new(-2.0, -2.0, -1.0),
+        max: Vec3::new(-0.35, 2.0, 1.0),
+    }];
+    s
+}
+
+#[test]
+fn a_sheet_on_hinges_folded_onto_itself_and_crumpled() {
+    for integrator in [Integrator::SymplecticEuler, Integrator::ImplicitEuler] {
+        // Folded to 180°: the free right edge carried over onto the pinned part, 0.1 above it.
+        let mut s = hinged_sheet(120);
+        s.solver.integrator = integrator;
+        s.pulls = pull(Vec3::X, 0.15, Vec3::new(-1.6, 0.0, 0.1), 120, 400.0);
+        let o = run(&s, square_sheet(2.0, 0.08)).unwrap();
+        // Sensible: the edge went where it was taken (within a fifth of the way), the pins
+        // held, every point finite (checked by `run`) and within the fold's reach.
+        let edge = (0..o.rest.len())
+            .min_by(|&a, &b| {
+                o.rest[a]
+                    .distance(Vec3::X)
+                    .total_cmp(&o.rest[b].distance(Vec3::X))
+            })
+            .unwrap();
+        let moved = o.positions[edge] - o.rest[edge];
+        assert!(
+            moved.distance(Vec3::new(-1.6, 0.0, 0.1)) < 0.32,
+            "{integrator:?}: the edge moved {moved}"
+        );
+        assert_held(&o, |p| p.x < -0.35, |p| p.x < -0.5, 1e-6);
+        assert!(o.max_displacement() < 2.0);
+        // Crumpled: the middle poked 0.8 down and 0.5 sideways, hard and fast.
+        let mut s = hinged_sheet(30);
+        s.solver.integrator = integrator;
+        s.pulls = pull(
+            Vec3::new(0.3, 0.0, 0.0),
+            0.3,
+            Vec3::new(0.5, 0.2, -0.8),
+            30,
+            5000.0,
+        );
+        let o = run(&s, square_sheet(2.0, 0.08)).unwrap();
+        assert_held(&o, |p| p.x < -0.35, |p| p.x < -0.5, 1e-6);
+        assert!(o.max_displacement() < 2.0, "{integrator:?}");
+    }
+}
+
+#[test]
+fn a_hinge_whose_triangle_has_no_area_is_a_typed_error() {
+    // Four points; the second wing lies on the edge's line.
+    let rest = [
+        Vec3::ZERO,
+        Vec3::X,
+        Vec3::new(0.5, 1.0, 0.0),
+        Vec3::new(2.0, 0.0, 0.0),
+    ];
+    let mut solver = Solver::new(&rest, &[1.0; 4], &[], SolverConfig::default()).unwrap();
+    let hinge = HingeSpec {
+        edge: [0, 1],
+        wings: [2, 3],
+        rest_angle: 0.0,
+        stiffness: 1.0,
+        damping: 0.0,
+    };
+    let e = solver.set_hinges(&[hinge]).unwrap_err();
+    eprintln!("a hinge of no area: {e}");
+    assert!(matches!(e, SolverError::InvalidHinge { hinge: 0, .. }));
+    assert_eq!(solver.hinge_count(), 0);
+    // A point named twice, or out of range: refused the same way.
+    for wings in [[2, 1], [2, 7]] {
+        let bad = HingeSpec { wings, ..hinge };
+        assert!(matches!(
+            solver.set_hinges(&[bad]),
+            Err(SolverError::InvalidHinge { .. })
+        ));
+    }
 }

@@ -14,7 +14,7 @@ use bevy_point_springs::core::pipeline::{
 };
 use bevy_point_springs::core::simplify::{SimplifyConfig, simplify_cloud};
 use bevy_point_springs::core::solver::{
-    Anchor, Integrator, Plasticity, Solver, SolverConfig, SolverError, SpringMaterial,
+    Anchor, BendingModel, Integrator, Plasticity, Solver, SolverConfig, SolverError, SpringMaterial,
 };
 use glam::Vec3;
 
@@ -88,18 +88,33 @@ fn plastic() -> SpringMaterial {
 fn a_pull_beyond_yield_leaves_a_permanent_dent() {
     let network = sheet();
     let pull = 0.3;
-    let (kept, flowed) = pull_and_release(&network, plastic(), pull);
-    assert!(flowed > 0);
-    // Well beyond the yield strain the springs near the centre took most of the pull as
-    // their rest length: the dent stays.
-    assert!(
-        kept > 0.3 * pull,
-        "plastic: the centre kept {kept} of a {pull} pull"
-    );
-    // The same pull on the elastic material springs back.
-    let (elastic, _) = pull_and_release(&network, SpringMaterial::default(), pull);
-    println!("a {pull} m pull: plastic keeps {kept} m ({flowed} flows), elastic {elastic} m");
-    assert!(elastic < 0.02 * pull, "elastic: the centre kept {elastic}");
+    for bending in [BendingModel::Springs, BendingModel::Hinges] {
+        let material = SpringMaterial {
+            bending,
+            ..plastic()
+        };
+        let (kept, flowed) = pull_and_release(&network, material, pull);
+        assert!(flowed > 0);
+        // Well beyond the yield strain the springs near the centre took most of the pull as
+        // their rest length (and the hinges their bend as their rest angle): the dent stays.
+        assert!(
+            kept > 0.3 * pull,
+            "{bending:?}, plastic: the centre kept {kept} of a {pull} pull"
+        );
+        // The same pull on the elastic material springs back.
+        let elastic = SpringMaterial {
+            bending,
+            ..SpringMaterial::default()
+        };
+        let (elastic, _) = pull_and_release(&network, elastic, pull);
+        println!(
+            "{bending:?}: a {pull} m pull: plastic keeps {kept} m ({flowed} flows), elastic {elastic} m"
+        );
+        assert!(
+            elastic < 0.02 * pull,
+            "{bending:?}, elastic: the centre kept {elastic}"
+        );
+    }
 }
 
 #[test]
@@ -133,6 +148,7 @@ fn bad_plasticity_is_a_typed_error() {
         let bad = Plasticity {
             yield_strain,
             creep_rate,
+            ..Plasticity::ELASTIC
         };
         assert!(matches!(
             solver.springs.set_plasticity(bad),
@@ -145,7 +161,16 @@ fn bad_plasticity_is_a_typed_error() {
 /// A 2000-point sphere on 200 simulation points without gravity, its bottom held and its
 /// top pulled up 0.3 for a second, then let go (still moving).
 fn pulled_sphere() -> PreparedSurface {
+    pulled_sphere_bending(BendingModel::Springs)
+}
+
+/// [`pulled_sphere`] with the bending model `bending`.
+fn pulled_sphere_bending(bending: BendingModel) -> PreparedSurface {
     let config = SurfaceConfig {
+        material: SpringMaterial {
+            bending,
+            ..SpringMaterial::default()
+        },
         simplify: SimplifyConfig::target(200),
         solver: SolverConfig {
             integrator: Integrator::ImplicitEuler,
@@ -231,6 +256,39 @@ fn a_baked_shape_stays_put() {
         (mass / fresh / grown - 1.0).abs() < 0.01,
         "{mass} / {fresh} against {grown}"
     );
+}
+
+#[test]
+fn a_baked_shape_on_hinges_stays_put() {
+    let mut surface = pulled_sphere_bending(BendingModel::Hinges);
+    let pulled = surface.solver.positions();
+    let before = surface
+        .solver
+        .springs
+        .hinges()
+        .angles(&surface.solver.points);
+    surface.bake().unwrap();
+    // The rest angles are the pulled shape's.
+    let rest: Vec<f32> = surface
+        .solver
+        .springs
+        .hinges()
+        .iter()
+        .map(|h| h.rest_angle)
+        .collect();
+    assert!(rest == before);
+    for _ in 0..60 {
+        surface.solver.step(DT).unwrap();
+    }
+    let moved = surface
+        .solver
+        .positions()
+        .iter()
+        .zip(&pulled)
+        .map(|(a, b)| a.distance(*b))
+        .fold(0.0f32, f32::max);
+    assert!(moved < 1e-6, "a point moved {moved}");
+    assert!(surface.solver.energy().bending < 1e-12);
 }
 
 /// The baked network's area over the area of the unit sphere's network it came from.

@@ -147,6 +147,7 @@ impl Plugin for DemoPlugin {
                 points: true,
                 stretch: true,
                 bend: true,
+                hinges: true,
             });
         }
         if self.args.scripted() {
@@ -279,6 +280,7 @@ fn keys(
                 points: true,
                 stretch: true,
                 bend: true,
+                hinges: true,
             },
             (true, true) => SpringGizmos::default(),
         };

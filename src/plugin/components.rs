@@ -27,8 +27,8 @@ use crate::core::network::SpringNetwork;
 use crate::core::pipeline::{DenseCloud, Stage, SurfaceConfig};
 use crate::core::scene::{Scene, Timeline};
 use crate::core::solver::{
-    Anchors, ExternalForces, Masses, MaterialUnits, Model, PointState, Pressure, SpringMaterial,
-    Springs, Stepper,
+    Anchors, BendingModel, ExternalForces, Masses, MaterialUnits, Model, PointState, Pressure,
+    SpringMaterial, Springs, Stepper,
 };
 
 use super::assets::{CloudAsset, SceneAsset};
@@ -347,10 +347,29 @@ pub struct SpringMaterialReflect {
     pub stretch_damping: f32,
     /// Damping of bend springs.
     pub bend_damping: f32,
+    /// The paper's bend springs, or hinges.
+    #[reflect(remote = BendingModelReflect)]
+    pub bending: BendingModel,
+    /// Flexural rigidity of the hinges, N·m.
+    pub bending_modulus: f32,
+    /// Damping time of the hinges, s.
+    pub bending_damping: f32,
     /// Strain borne elastically before the rest lengths creep.
     pub yield_strain: f32,
+    /// Bend borne elastically before the hinges' rest angles creep, radians.
+    pub yield_angle: f32,
     /// How fast the strain beyond yield becomes the rest length, per second (0: elastic).
     pub creep_rate: f32,
+}
+
+/// How [`BendingModel`] is reflected.
+#[reflect_remote(BendingModel)]
+#[derive(Debug)]
+pub enum BendingModelReflect {
+    /// The paper's bend springs.
+    Springs,
+    /// Hinges (discrete shells).
+    Hinges,
 }
 
 /// How [`MaterialUnits`] is reflected.

@@ -169,6 +169,12 @@ fn carry_out(request: &ModelMessage, surfaces: &mut Query<ModelParts>) -> Result
                 points.set_position(i, p).map_err(|e| e.to_string())?;
             }
             points.stop();
+            if !springs.hinges().is_empty() {
+                // Plastic flow moved the rest angles too: measured again on the rest shape.
+                springs
+                    .set_rest_angles(&points)
+                    .map_err(|e| e.to_string())?;
+            }
             if let Some(mut timeline) = timeline {
                 timeline.restart(&mut anchors);
             }

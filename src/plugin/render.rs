@@ -10,7 +10,7 @@
 //! StandardMaterial's PBR, so the surfels are lit like any mesh. A surface whose point
 //! count outgrows its slot (resampling) gets a larger slot, and the batch a larger buffer.
 //!
-//! Optional gizmos ([`SpringGizmos`]) draw the simulation points and the stretch and bend
+//! Optional gizmos ([`SpringGizmos`]) draw the simulation points, the hinges and the stretch and bend
 //! springs in two colours.
 
 use std::collections::HashMap;
@@ -37,6 +37,7 @@ use super::components::{
     DenseSurface, SimulationPoints, SurfaceNetwork, SurfaceSprings, SurfaceTimings,
 };
 use crate::core::cloud::surfels::{DEFAULT_SURFEL_SCALE, SURFEL_BYTES, pack_surfels, surfel_radii};
+use crate::core::solver::angle_difference;
 
 /// Corners of a surfel's hexagon.
 const CORNERS: usize = 6;
@@ -164,7 +165,13 @@ pub struct SpringGizmos {
     pub stretch: bool,
     /// The bend springs.
     pub bend: bool,
+    /// The hinges (bending on hinges): each hinge's edge, from green at its rest angle to red
+    /// bent [`HINGE_GIZMO_FULL_BEND`] or more past it.
+    pub hinges: bool,
 }
+
+/// The bend (radians past the rest angle) a hinge gizmo shows in full red.
+pub const HINGE_GIZMO_FULL_BEND: f32 = 0.5;
 
 /// A look: the colour's bits.
 type LookKey = [u32; 4];
@@ -446,7 +453,7 @@ fn draw_gizmos(
         &GlobalTransform,
     )>,
 ) {
-    if !(settings.points || settings.stretch || settings.bend) {
+    if !(settings.points || settings.stretch || settings.bend || settings.hinges) {
         return;
     }
     let stretch_color = Color::srgb(0.25, 0.65, 1.0);
@@ -471,6 +478,16 @@ fn draw_gizmos(
                     bend_color
                 };
                 gizmos.line(at(spring.a as usize), at(spring.b as usize), color);
+            }
+        }
+        if settings.hinges {
+            let hinges = springs.hinges();
+            for (hinge, angle) in hinges.iter().zip(hinges.angles(points)) {
+                let bend = angle_difference(angle, hinge.rest_angle).abs();
+                let t = (bend / HINGE_GIZMO_FULL_BEND).min(1.0);
+                let color = Color::srgb(0.2 + 0.8 * t, 0.9 * (1.0 - t) + 0.1, 0.2);
+                let [a, b] = hinge.edge.map(|i| at(i as usize));
+                gizmos.line(a, b, color);
             }
         }
     }

@@ -120,8 +120,24 @@ pub(crate) fn apply_materials(
     for (entity, material, network, mut springs) in &mut surfaces {
         let material: SpringMaterial = material.0;
         let specs = material.springs(network);
+        let hinges = material.hinges(network);
+        if specs.len() != springs.len() || hinges.len() != springs.hinges().len() {
+            // Another bending model builds other springs: that takes a new preparation (the
+            // panel sends one), until which the surface keeps its springs.
+            warn!(
+                "point-springs surface {entity}: material not applied until the surface is \
+                 prepared again (PrepareAgain): its bending model ({:?}) is not the one it was \
+                 prepared with",
+                material.bending
+            );
+            continue;
+        }
+        let rest: Vec<f32> = springs.hinges().iter().map(|h| h.rest_angle).collect();
         let applied = springs
             .set_parameters(|i| (specs[i].stiffness, specs[i].damping))
+            .and_then(|()| {
+                springs.set_hinge_parameters(|i| [rest[i], hinges[i].stiffness, hinges[i].damping])
+            })
             .and_then(|()| springs.set_plasticity(material.plasticity()));
         if let Err(e) = applied {
             // Refused: the springs keep their old parameters and the surface runs on.

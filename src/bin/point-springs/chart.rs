@@ -7,6 +7,7 @@ use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
 use plotters::coord::ranged1d::{AsRangedCoord, ValueFormatter};
+use plotters::element::DashedPathElement;
 use plotters::prelude::*;
 
 use crate::failure::Failure;
@@ -36,6 +37,22 @@ pub struct Series {
     pub name: String,
     /// Its points, drawn in order.
     pub points: Vec<(f64, f64)>,
+    /// Its colour, an index into the palette (`None`: its place among the series).
+    pub colour: Option<usize>,
+    /// Dashes of this many pixels with as many between (`None`: a solid line).
+    pub dash: Option<u32>,
+}
+
+impl Series {
+    /// A solid line in the next colour.
+    pub fn new(name: String, points: Vec<(f64, f64)>) -> Self {
+        Self {
+            name,
+            points,
+            colour: None,
+            dash: None,
+        }
+    }
 }
 
 /// A chart: its text, its axes and its lines.
@@ -156,13 +173,24 @@ impl Chart {
             .draw()
             .map_err(|x| e(&x))?;
         for (i, s) in self.series.iter().enumerate() {
-            let colour = COLOURS[i % COLOURS.len()];
+            let colour = COLOURS[s.colour.unwrap_or(i) % COLOURS.len()];
             let style = ShapeStyle::from(colour).stroke_width(2);
-            chart
-                .draw_series(LineSeries::new(s.points.iter().copied(), style))
+            let drawn = match s.dash {
+                None => chart.draw_series(LineSeries::new(s.points.iter().copied(), style)),
+                Some(dash) => chart.draw_series(DashedLineSeries::new(
+                    s.points.iter().copied(),
+                    dash,
+                    dash,
+                    style,
+                )),
+            };
+            let dash = s.dash.map_or(18, |d| d.min(8));
+            drawn
                 .map_err(|x| e(&x))?
                 .label(s.name.as_str())
-                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], style));
+                .legend(move |(x, y)| {
+                    DashedPathElement::new(vec![(x, y), (x + 18, y)], dash, dash, style)
+                });
             chart
                 .draw_series(s.points.iter().map(|&p| Circle::new(p, 3, colour.filled())))
                 .map_err(|x| e(&x))?;

@@ -265,6 +265,40 @@ impl SpringNetwork {
             .collect()
     }
 
+    /// The hinges of the mesh: every edge shared by exactly two triangles that run it in
+    /// opposite directions, as `[p₀, p₁, w₁, w₂]` with the triangles (p₀, p₁, w₁) and
+    /// (p₁, p₀, w₂) (see [`Hinges`](crate::core::solver::Hinges)), in the order of the
+    /// triangles. An edge of three or more triangles, or of two running it the same way,
+    /// carries none.
+    pub fn hinge_stencils(&self) -> Vec<[u32; 4]> {
+        use std::collections::HashMap;
+        // Directed edge → the far corner of its triangle, or None when it occurs twice.
+        let mut far: HashMap<(u32, u32), Option<u32>> = HashMap::new();
+        let directed = |t: &[u32; 3]| [(t[0], t[1], t[2]), (t[1], t[2], t[0]), (t[2], t[0], t[1])];
+        for t in &self.triangles {
+            for (a, b, c) in directed(t) {
+                far.entry((a, b))
+                    .and_modify(|w| *w = None)
+                    .or_insert(Some(c));
+            }
+        }
+        let mut out = Vec::new();
+        for t in &self.triangles {
+            for (a, b, c) in directed(t) {
+                if a > b {
+                    continue;
+                }
+                if let (Some(Some(w1)), Some(Some(w2))) = (far.get(&(a, b)), far.get(&(b, a)))
+                    && *w1 == c
+                    && w1 != w2
+                {
+                    out.push([a, b, *w1, *w2]);
+                }
+            }
+        }
+        out
+    }
+
     /// The consistent ring of point `i`.
     pub fn ring(&self, i: usize) -> &[u32] {
         &self.ring_indices[self.ring_offsets[i] as usize..self.ring_offsets[i + 1] as usize]

@@ -11,7 +11,8 @@ pub struct BakeParts<'a> {
     pub network: &'a SpringNetwork,
     /// The simulation points: their positions are the new rest shape; velocities go to zero.
     pub points: &'a mut PointState,
-    /// Rest lengths set anew (stiffness, damping and plasticity kept).
+    /// Rest lengths and hinges' rest angles set anew (stiffness, damping and plasticity
+    /// kept).
     pub springs: &'a mut Springs,
     /// Masses set anew (pins kept).
     pub masses: &'a mut Masses,
@@ -40,6 +41,9 @@ pub fn bake(parts: BakeParts<'_>, density: f32) -> Result<SpringNetwork, Prepare
     let network = network.reshaped(&points.positions(), density)?;
     let mut new_springs = springs.clone();
     new_springs.set_rest_lengths(|i| network.rest_length(i))?;
+    if !new_springs.hinges().is_empty() {
+        new_springs.set_rest_angles(points)?;
+    }
     let mut new_masses = Masses::new(&network.masses)?;
     for i in (0..masses.len()).filter(|&i| masses.is_pinned(i)) {
         new_masses.set_pinned(i, true)?;

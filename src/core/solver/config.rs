@@ -253,6 +253,38 @@ pub enum MaterialUnits {
     Sheet,
 }
 
+/// How a surface resists bending.
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, Hash, Default, serde::Serialize, serde::Deserialize,
+)]
+pub enum BendingModel {
+    /// The paper's bend springs (§4.2): a central spring from ring vertex r to r + 2. It
+    /// resists folding only through the change of its length, which is of second order in
+    /// the fold angle on flat ground, so finer networks are softer shells; the springs also
+    /// stiffen the sheet in its plane.
+    #[default]
+    Springs,
+    /// A hinge at every inner edge of the network's mesh (discrete shells, see
+    /// [`Hinges`]) with the energy E = k·(θ − θ̄)², k = `bending_modulus`·3|ē|²/(6·Ā) (Ā the
+    /// two triangles' rest area): a plate of flexural rigidity `bending_modulus` (N·m) with
+    /// the Poisson's ratio [`HINGE_POISSON_RATIO`], on any network spacing. No bend springs: the stretch springs alone
+    /// carry the sheet in its plane.
+    Hinges,
+}
+
+/// The 6 of k = D·3|ē|²/(6·Ā) ([`BendingModel::Hinges`]). On a regular triangle lattice bent
+/// to principal curvatures κ₁ and κ₂, Σ 3|ē|²/Ā·θ² over the hinges of a unit of area is
+/// 3κ₁² + 3κ₂² − 2κ₁κ₂ (measured on lattices of 8100 points to 1 %; the lattice's three-fold
+/// symmetry makes it the same in every direction), and a plate of flexural rigidity D and
+/// Poisson's ratio ν stores D/2·(κ₁² + κ₂² + 2ν·κ₁κ₂): the hinges are that plate with
+/// ν = −1/3. Bent one way only (κ₂ = 0, a wide sheet) it stores D/2·κ², as a plate does; a
+/// narrow strip, free to curl across, bends as a beam of rigidity D·(1 − ν²) = 8D/9 per unit
+/// width.
+pub const HINGE_PLATE_FACTOR: f32 = 6.0;
+
+/// The Poisson's ratio of bending on hinges (see [`HINGE_PLATE_FACTOR`]).
+pub const HINGE_POISSON_RATIO: f32 = -1.0 / 3.0;
+
 /// A surface's material: its density (the masses of eq 1) and the stiffness and damping of
 /// the two kinds of spring of a [`SpringNetwork`], per spring or as a sheet's moduli (see
 /// [`MaterialUnits`]). In a scene file:
@@ -275,9 +307,20 @@ pub struct SpringMaterial {
     pub stretch_damping: f32,
     /// Damping of bend springs, or their damping ratio.
     pub bend_damping: f32,
+    /// How the surface resists bending: the paper's bend springs, or hinges.
+    pub bending: BendingModel,
+    /// The flexural rigidity D of [`BendingModel::Hinges`], N·m (for a solid sheet of
+    /// Young's modulus E, thickness t and Poisson's ratio ν, D = E·t³/(12·(1 − ν²))).
+    pub bending_modulus: f32,
+    /// The hinges' damping as a time β (seconds): each dissipates ½·β·2k·θ̇², so a bending
+    /// mode of angular frequency ω is damped at the ratio β·ω/2.
+    pub bending_damping: f32,
     /// Plasticity: the strain (stretch or compression, relative to the rest length) a spring
     /// bears elastically; beyond it the rest length creeps (see [`Self::creep_rate`]).
     pub yield_strain: f32,
+    /// Plasticity: the bend (radians past the rest angle) a hinge bears elastically; beyond
+    /// it the rest angle creeps at [`Self::creep_rate`].
+    pub yield_angle: f32,
     /// Plasticity: how fast a spring strained beyond [`Self::yield_strain`] takes the excess as
     /// its new rest length, per second (its excess decays as e^(−rate·t)). 0, the default,
     /// keeps the material elastic.
@@ -296,6 +339,8 @@ impl SpringMaterial {
             ("bend_stiffness", self.bend_stiffness),
             ("stretch_damping", self.stretch_damping),
             ("bend_damping", self.bend_damping),
+            ("bending_modulus", self.bending_modulus),
+            ("bending_damping", self.bending_damping),
         ] {
             if !(v.is_finite() && v >= 0.0) {
                 return Err(format!(
@@ -312,14 +357,56 @@ impl SpringMaterial {
     pub fn plasticity(&self) -> Plasticity {
         Plasticity {
             yield_strain: self.yield_strain,
+            yield_angle: self.yield_angle,
             creep_rate: self.creep_rate,
         }
     }
 
-    /// The network's stretch springs, then its bend springs, with this material's
-    /// stiffness and damping (per spring, or converted from the sheet's moduli and damping
-    /// ratios on the network's geometry: see [`MaterialUnits`]).
+    /// The network's hinges with this material's stiffness and damping, their rest angles
+    /// measured on the network's rest shape: one at every inner edge
+    /// ([`SpringNetwork::hinge_stencils`]) with [`BendingModel::Hinges`], none with
+    /// [`BendingModel::Springs`].
+    pub fn hinges(&self, network: &SpringNetwork) -> Vec<HingeSpec> {
+        if self.bending != BendingModel::Hinges {
+            return Vec::new();
+        }
+        let at = |i: u32| network.positions[i as usize];
+        network
+            .hinge_stencils()
+            .into_iter()
+            .map(|[p0, p1, w1, w2]| {
+                let (e, a1, a2) = (at(p1) - at(p0), at(w1) - at(p0), at(w2) - at(p0));
+                // Twice the two triangles' area.
+                let area2 = e.cross(a1).length() + a2.cross(e).length();
+                let weight = if area2 > 0.0 {
+                    3.0 * e.length_squared() / (0.5 * area2)
+                } else {
+                    0.0
+                };
+                let stiffness = self.bending_modulus * weight / HINGE_PLATE_FACTOR;
+                let rest_angle =
+                    HingeGeometry::at([at(p0), at(p1), at(w1), at(w2)]).map_or(0.0, |g| g.angle);
+                HingeSpec {
+                    edge: [p0, p1],
+                    wings: [w1, w2],
+                    rest_angle,
+                    stiffness,
+                    damping: self.bending_damping * 2.0 * stiffness,
+                }
+            })
+            .collect()
+    }
+
+    /// The network's stretch springs, then its bend springs (none with
+    /// [`BendingModel::Hinges`]), with this material's stiffness and damping (per spring, or
+    /// converted from the sheet's moduli and damping ratios on the network's geometry: see
+    /// [`MaterialUnits`]).
     pub fn springs(&self, network: &SpringNetwork) -> Vec<SpringSpec> {
+        let no_bend = Vec::new();
+        let bend = match self.bending {
+            BendingModel::Springs => &network.bend,
+            BendingModel::Hinges => &no_bend,
+        };
         let spec =
             |s: &crate::core::network::Spring, (stiffness, damping): (f32, f32)| SpringSpec {
                 a: s.a,
@@ -331,21 +418,21 @@ impl SpringMaterial {
         match self.units {
             MaterialUnits::PerSpring => {
                 let stretch = (self.stretch_stiffness, self.stretch_damping);
-                let bend = (self.bend_stiffness, self.bend_damping);
+                let bend_kd = (self.bend_stiffness, self.bend_damping);
                 let stretch = network.stretch.iter().map(|s| spec(s, stretch));
-                let bend = network.bend.iter().map(|s| spec(s, bend));
+                let bend = bend.iter().map(|s| spec(s, bend_kd));
                 stretch.chain(bend).collect()
             }
             MaterialUnits::Sheet => {
                 let areas = network.point_areas();
-                let mut out = Vec::with_capacity(network.stretch.len() + network.bend.len());
+                let mut out = Vec::with_capacity(network.stretch.len() + bend.len());
                 for (springs, modulus, ratio) in [
                     (
                         &network.stretch,
                         self.stretch_stiffness,
                         self.stretch_damping,
                     ),
-                    (&network.bend, self.bend_stiffness, self.bend_damping),
+                    (bend, self.bend_stiffness, self.bend_damping),
                 ] {
                     let mut degree = vec![0u32; network.len()];
                     for s in springs.iter() {
@@ -382,14 +469,34 @@ impl Default for SpringMaterial {
             bend_stiffness: 20.0,
             stretch_damping: 2.0,
             bend_damping: 0.2,
+            bending: BendingModel::default(),
+            bending_modulus: DEFAULT_BENDING_MODULUS,
+            bending_damping: DEFAULT_BENDING_DAMPING,
             yield_strain: DEFAULT_YIELD_STRAIN,
+            yield_angle: DEFAULT_YIELD_ANGLE,
             creep_rate: 0.0,
         }
     }
 }
 
+/// The default flexural rigidity of [`SpringMaterial`]'s hinges, N·m: a sheet as stiff in
+/// its plane as the default springs (about 200 N/m) and 2.5 cm thick, D = E·t²/12.
+pub const DEFAULT_BENDING_MODULUS: f32 = 0.01;
+
+/// The default damping time of [`SpringMaterial`]'s hinges, s: a bending mode of 10 rad/s
+/// damped at the ratio 0.05, the fastest modes of a fine network overdamped.
+pub const DEFAULT_BENDING_DAMPING: f32 = 0.01;
+
 /// The default yield strain of [`SpringMaterial`]: 10 % (used once a creep rate is set).
 pub const DEFAULT_YIELD_STRAIN: f32 = 0.1;
+
+/// The default yield angle of [`SpringMaterial`]'s hinges: 0.1 rad, about 6° (used once a
+/// creep rate is set).
+pub const DEFAULT_YIELD_ANGLE: f32 = 0.1;
+
+fn default_yield_angle() -> f32 {
+    DEFAULT_YIELD_ANGLE
+}
 
 /// Plastic flow of springs (§ "modelling" in the README): a spring strained by more than
 /// `yield_strain` moves its rest length towards the length at which its strain would be the
@@ -399,6 +506,10 @@ pub const DEFAULT_YIELD_STRAIN: f32 = 0.1;
 pub struct Plasticity {
     /// Strain borne elastically, finite and not negative.
     pub yield_strain: f32,
+    /// Bend (radians past the rest angle) a hinge bears elastically, finite and not
+    /// negative.
+    #[serde(default = "default_yield_angle")]
+    pub yield_angle: f32,
     /// Relaxation rate of the excess strain, per second, finite and not negative (0: elastic).
     pub creep_rate: f32,
 }
@@ -407,6 +518,7 @@ impl Plasticity {
     /// No plastic flow.
     pub const ELASTIC: Self = Self {
         yield_strain: DEFAULT_YIELD_STRAIN,
+        yield_angle: DEFAULT_YIELD_ANGLE,
         creep_rate: 0.0,
     };
 
@@ -419,6 +531,7 @@ impl Plasticity {
     pub fn validate(&self) -> Result<(), SolverError> {
         for (what, value) in [
             ("yield strain", self.yield_strain),
+            ("yield angle", self.yield_angle),
             ("creep rate", self.creep_rate),
         ] {
             if !(value.is_finite() && value >= 0.0) {

@@ -24,8 +24,9 @@
 
 use glam::{DMat3, DVec3};
 
-use super::parts::PointState;
-use super::springs::{COINCIDENT_DISTANCE, SpringLayout};
+use super::parts::Springs;
+use super::parts::{HingeBlock, PointState};
+use super::springs::COINCIDENT_DISTANCE;
 use super::stepper::{Model, Stepper};
 use super::{DampingModel, SolverConfig};
 
@@ -152,6 +153,8 @@ pub(crate) struct Scratch {
     fixed: Vec<bool>,
     /// The volume's gradient at each point, for the gas's rank-one term.
     gas: Vec<DVec3>,
+    /// Each hinge's gradient and scale.
+    hinges: Vec<HingeBlock>,
 }
 
 impl Scratch {
@@ -212,6 +215,8 @@ struct System<'a> {
     fixed: &'a [bool],
     gas: &'a [DVec3],
     gas_scale: f64,
+    hinges: &'a [HingeBlock],
+    hinge_ends: &'a [[u32; 4]],
 }
 
 impl System<'_> {
@@ -229,6 +234,19 @@ impl System<'_> {
             let w = c.mul(p[a] - p[b]);
             y[a] += w;
             y[b] -= w;
+        }
+        for (block, ends) in self.hinges.iter().zip(self.hinge_ends) {
+            // s·∇θ(∇θ·p) on the hinge's four points.
+            let ends = ends.map(|i| i as usize);
+            let g = &block.gradient;
+            let t = block.scale
+                * (g[0].dot(p[ends[0]])
+                    + g[1].dot(p[ends[1]])
+                    + g[2].dot(p[ends[2]])
+                    + g[3].dot(p[ends[3]]));
+            for j in 0..4 {
+                y[ends[j]] += t * g[j];
+            }
         }
         let along = if self.gas_scale > 0.0 {
             // p is zero at fixed points, so g·p sums the free ones.
@@ -265,8 +283,13 @@ impl Stepper {
         let mut scratch = std::mem::take(&mut self.implicit);
         scratch.resize(n, layout.len());
         let h = f64::from(h);
-        let gas_scale = assemble(&mut scratch, &self.fa, &self.fb, points, model, &config, h);
-        let outcome = conjugate_gradient(&config, layout, &mut scratch, gas_scale);
+        let forces = Forces {
+            fa: &self.fa,
+            fb: &self.fb,
+            hinge_gradients: &self.hinge_gradients,
+        };
+        let gas_scale = assemble(&mut scratch, forces, points, model, &config, h);
+        let outcome = conjugate_gradient(&config, model.springs, &mut scratch, gas_scale);
 
         for (i, dv) in scratch.dv.iter().enumerate() {
             if scratch.fixed[i] {
@@ -285,13 +308,25 @@ impl Stepper {
     }
 }
 
+/// What phase 1 left at the state a step starts from: the forces on the springs' two ends
+/// and each hinge's gradient.
+#[derive(Clone, Copy)]
+struct Forces<'a> {
+    fa: &'a super::parts::Soa3,
+    fb: &'a super::parts::Soa3,
+    hinge_gradients: &'a [[glam::Vec3; 4]],
+}
+
 /// Builds the step's system in `s`: the right-hand side h·(f₀ + h·∂f/∂x·v₀) from the forces
 /// `fa` + `fb`, each point's own part, the springs' blocks, the gas's gradient and the
 /// preconditioner; returns the gas's rank-one scale (0 without gas).
 fn assemble(
     s: &mut Scratch,
-    fa: &super::parts::Soa3,
-    fb: &super::parts::Soa3,
+    Forces {
+        fa,
+        fb,
+        hinge_gradients,
+    }: Forces<'_>,
     points: &PointState,
     model: Model<'_>,
     config: &SolverConfig,
@@ -366,6 +401,16 @@ fn assemble(
             0.0
         }
     };
+    // The hinges: s·∇θ∇θᵀ in the matrix, −h²·2k·∇θ(∇θ·v₀) on the right-hand side.
+    let hinges = &model.springs.hinges;
+    hinges.linearised(hinge_gradients, points, h, &mut s.hinges);
+    for (block, ends) in s.hinges.iter().zip(&hinges.ends) {
+        for (&i, &g) in ends.iter().zip(&block.gradient) {
+            let i = i as usize;
+            s.rhs[i] -= block.rhs * g;
+            diag[i] = diag[i].add(Sym3::outer_plus_identity(g, block.scale, 0.0));
+        }
+    }
     if gas_scale > 0.0 {
         let rate: f64 = (0..n)
             .filter(|&i| !s.fixed[i])
@@ -393,7 +438,7 @@ fn assemble(
 /// Solves the step's system by preconditioned conjugate gradient, from the warm start.
 fn conjugate_gradient(
     config: &SolverConfig,
-    layout: &SpringLayout,
+    springs: &Springs,
     s: &mut Scratch,
     gas_scale: f64,
 ) -> CgOutcome {
@@ -410,6 +455,8 @@ fn conjugate_gradient(
     let blocks = std::mem::take(&mut s.blocks);
     let fixed = std::mem::take(&mut s.fixed);
     let gas = std::mem::take(&mut s.gas);
+    let hinges = std::mem::take(&mut s.hinges);
+    let layout = &springs.layout;
     let system = System {
         own: &own,
         blocks: &blocks,
@@ -418,12 +465,15 @@ fn conjugate_gradient(
         fixed: &fixed,
         gas: &gas,
         gas_scale,
+        hinges: &hinges,
+        hinge_ends: &springs.hinges.ends,
     };
     let outcome = iterate(config, &system, s, tolerance, b_norm);
     s.own = own;
     s.blocks = blocks;
     s.fixed = fixed;
     s.gas = gas;
+    s.hinges = hinges;
     outcome
 }
 
@@ -500,12 +550,15 @@ mod tests {
 
     use glam::Vec3;
 
-    use crate::core::solver::parts::{Anchors, Masses, Pressure, Springs};
+    use crate::core::solver::parts::{
+        Anchors, HingeGeometry, HingeSpec, Hinges, Masses, Pressure, Springs,
+    };
     use crate::core::solver::{Anchor, SpringSpec};
 
     /// The dense 3n×3n matrix of implicit Euler's step written out from its definition
     /// (M + h·μ·M, anchors, h·D + h²·K of each spring on its two ends and negated between
-    /// them (D = k_d·I, or k_d·ûûᵀ along the spring), the gas's h²c·ggᵀ; fixed rows and columns zero), entry (3i + r, 3j + c).
+    /// them (D = k_d·I, or k_d·ûûᵀ along the spring), the gas's h²c·ggᵀ, each hinge's
+    /// (h·c + h²·2k)·∇θ∇θᵀ; fixed rows and columns zero), entry (3i + r, 3j + c).
     fn reference_matrix(
         points: &PointState,
         model: Model<'_>,
@@ -560,6 +613,19 @@ mod tests {
                 );
             }
         }
+        // Each hinge: (h·c + h²·2k)·∇θ∇θᵀ over its four points.
+        for spec in model.springs.hinges().iter() {
+            let ends = [spec.edge[0], spec.edge[1], spec.wings[0], spec.wings[1]];
+            let g = HingeGeometry::at(ends.map(|i| points.position(i as usize))).unwrap();
+            let scale = h * f64::from(spec.damping) + h * h * 2.0 * f64::from(spec.stiffness);
+            for (j, &a) in ends.iter().enumerate() {
+                for (l, &b) in ends.iter().enumerate() {
+                    let (ga, gb) = (g.gradient[j].as_dvec3(), g.gradient[l].as_dvec3());
+                    let block = DMat3::from_cols(ga * gb.x, ga * gb.y, ga * gb.z);
+                    add(a as usize, b as usize, block, scale);
+                }
+            }
+        }
         for i in (0..n).filter(|&i| model.masses.inv_mass[i] == 0.0) {
             for k in 0..3 * n {
                 m[3 * i..3 * i + 3].iter_mut().for_each(|row| row[k] = 0.0);
@@ -608,7 +674,20 @@ mod tests {
                 }
             })
             .collect();
-        let springs = Springs::new(&specs, x.len()).unwrap();
+        let mut springs = Springs::new(&specs, x.len()).unwrap();
+        // Two hinges, one bent off its rest angle and one at a point the gas leaves out.
+        let hinge = |edge, wings, rest_angle, stiffness| HingeSpec {
+            edge,
+            wings,
+            rest_angle,
+            stiffness,
+            damping: 0.05 * stiffness,
+        };
+        let hinges = [
+            hinge([0, 1], [3, 2], 0.3, 4.0),
+            hinge([2, 3], [1, 4], -0.2, 9.0),
+        ];
+        springs.set_hinges(Hinges::new(&hinges, &x).unwrap());
         let mut masses = Masses::new(&[0.5, 1.0, 2.0, 0.7, 0.3]).unwrap();
         masses.set_pinned(0, true).unwrap();
         let mut anchors = Anchors::default();
@@ -643,7 +722,12 @@ mod tests {
             let mut s = Scratch::default();
             s.resize(x.len(), springs.len());
             let h = 1.0 / 30.0;
-            let gas_scale = assemble(&mut s, &stepper.fa, &stepper.fb, &points, model, &config, h);
+            let forces = Forces {
+                fa: &stepper.fa,
+                fb: &stepper.fb,
+                hinge_gradients: &stepper.hinge_gradients,
+            };
+            let gas_scale = assemble(&mut s, forces, &points, model, &config, h);
             assert!(gas_scale > 0.0);
             let system = System {
                 own: &s.own,
@@ -653,6 +737,8 @@ mod tests {
                 fixed: &s.fixed,
                 gas: &s.gas,
                 gas_scale,
+                hinges: &s.hinges,
+                hinge_ends: &springs.hinges.ends,
             };
             let reference = reference_matrix(&points, model, &config, h, &s.gas, gas_scale);
             let n = x.len();
@@ -689,7 +775,7 @@ mod tests {
                 assert!(back.abs_diff_eq(DMat3::IDENTITY, 1e-9), "{i}: {back}");
             }
             // The solve meets its tolerance on the written-out system.
-            let outcome = conjugate_gradient(&config, &springs.layout, &mut s, gas_scale);
+            let outcome = conjugate_gradient(&config, &springs, &mut s, gas_scale);
             assert!(outcome.converged);
             let b_norm = dot(&s.rhs, &s.rhs).sqrt();
             // Rows of the fixed point 0 are zero on both sides.

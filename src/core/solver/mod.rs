@@ -86,12 +86,17 @@ use glam::Vec3;
 use crate::core::network::SpringNetwork;
 
 pub use config::{
-    DEFAULT_YIELD_STRAIN, DampingModel, InstabilityResponse, Integrator, MaterialUnits, Plasticity,
-    RUNAWAY_DIAGONALS_PER_SECOND, RUNAWAY_MIN_SPEED, SHEET_LATTICE_FACTOR, SolverConfig,
-    SpringMaterial, SubstepPolicy, UnknownIntegrator,
+    BendingModel, DEFAULT_BENDING_DAMPING, DEFAULT_BENDING_MODULUS, DEFAULT_YIELD_ANGLE,
+    DEFAULT_YIELD_STRAIN, DampingModel, HINGE_PLATE_FACTOR, HINGE_POISSON_RATIO,
+    InstabilityResponse, Integrator, MaterialUnits, Plasticity, RUNAWAY_DIAGONALS_PER_SECOND,
+    RUNAWAY_MIN_SPEED, SHEET_LATTICE_FACTOR, SolverConfig, SpringMaterial, SubstepPolicy,
+    UnknownIntegrator,
 };
 use parts::non_negative;
-pub use parts::{Anchors, ExternalForces, Masses, PointState, Pressure, Springs, hold_still};
+pub use parts::{
+    Anchors, DEGENERATE_HEIGHT, ExternalForces, HingeGeometry, HingeSpec, Hinges, Masses,
+    PointState, Pressure, Springs, angle_difference, hold_still,
+};
 pub use report::{Diagnostics, Energy, Instability, SolverError, Stability, StepReport};
 pub use springs::{COINCIDENT_DISTANCE, SpringSpec};
 pub use state::{SolverState, StateParts, StatePartsMut};
@@ -235,8 +240,9 @@ impl Solver {
         Ok(())
     }
 
-    /// A solver over a [`SpringNetwork`]: its rest positions and masses, stretch and bend
-    /// springs with the material's stiffness and damping.
+    /// A solver over a [`SpringNetwork`]: its rest positions and masses, and the springs and
+    /// hinges of the material's bending model with its stiffness and damping
+    /// ([`SpringMaterial::springs`], [`SpringMaterial::hinges`]).
     pub fn from_network(
         network: &SpringNetwork,
         material: &SpringMaterial,
@@ -249,7 +255,24 @@ impl Solver {
             config,
         )?;
         solver.springs.set_plasticity(material.plasticity())?;
+        let hinges = material.hinges(network);
+        if !hinges.is_empty() {
+            solver.set_hinges(&hinges)?;
+        }
         Ok(solver)
+    }
+
+    /// Gives the surface these hinges (bending; see [`Hinges`]), their rest shape measured at
+    /// the rest positions; refused, nothing changed, as [`Hinges::new`] refuses.
+    pub fn set_hinges(&mut self, hinges: &[HingeSpec]) -> Result<(), SolverError> {
+        let hinges = Hinges::new(hinges, &self.rest)?;
+        self.springs.set_hinges(hinges);
+        Ok(())
+    }
+
+    /// Number of hinges.
+    pub fn hinge_count(&self) -> usize {
+        self.springs.hinges().len()
     }
 
     /// The read-only parts a step needs.

@@ -12,9 +12,12 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use glam::Vec3;
 
 mod anchors;
+mod hinges;
 mod pressure;
 
 pub use anchors::Anchors;
+pub(crate) use hinges::HingeBlock;
+pub use hinges::{DEGENERATE_HEIGHT, HingeGeometry, HingeSpec, Hinges, angle_difference};
 pub use pressure::Pressure;
 
 use super::springs::SpringLayout;
@@ -318,12 +321,14 @@ pub fn hold_still(
 }
 
 /// The springs (eq 2–3), stored in the order the force kernels want (see the `springs`
-/// module); [`Springs::iter`] gives them back.
+/// module); [`Springs::iter`] gives them back. They hold the surface's [`Hinges`] too (none
+/// unless set), so that bending goes wherever the springs go.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Springs {
     pub(crate) layout: SpringLayout,
     pub(crate) revision: u64,
     plasticity: Plasticity,
+    pub(crate) hinges: Hinges,
 }
 
 impl Springs {
@@ -357,7 +362,39 @@ impl Springs {
             layout: SpringLayout::new(springs),
             revision: next_revision(),
             plasticity: Plasticity::ELASTIC,
+            hinges: Hinges::default(),
         })
+    }
+
+    /// The hinges (bending; none unless set).
+    pub fn hinges(&self) -> &Hinges {
+        &self.hinges
+    }
+
+    /// Replaces the hinges (their points must be below the number of points the springs'
+    /// owner has: [`Solver::set_hinges`](super::Solver::set_hinges) checks that).
+    pub fn set_hinges(&mut self, hinges: Hinges) {
+        self.hinges = hinges;
+        self.revision = next_revision();
+    }
+
+    /// Sets every hinge's rest angle, stiffness and damping from its index (see
+    /// [`Hinges::set_parameters`]).
+    pub fn set_hinge_parameters(
+        &mut self,
+        of: impl FnMut(usize) -> [f32; 3],
+    ) -> Result<(), SolverError> {
+        self.hinges.set_parameters(of)?;
+        self.revision = next_revision();
+        Ok(())
+    }
+
+    /// Sets every hinge's rest angle to its angle at `points` (a bake; see
+    /// [`Hinges::set_rest_shape`]).
+    pub fn set_rest_angles(&mut self, points: &PointState) -> Result<(), SolverError> {
+        self.hinges.set_rest_shape(points)?;
+        self.revision = next_revision();
+        Ok(())
     }
 
     /// Number of springs.
@@ -433,7 +470,8 @@ impl Springs {
             .collect()
     }
 
-    /// Potential energy ½k(|l| − l⁰)² of the springs at `points`.
+    /// Potential energy ½k(|l| − l⁰)² of the springs at `points` (the hinges' is
+    /// [`Hinges::energy`]).
     pub fn energy(&self, points: &PointState) -> f64 {
         self.layout.energy(&points.x)
     }
@@ -470,15 +508,17 @@ impl Springs {
 
     /// Plastic flow after a step of `dt` seconds: each spring strained beyond the yield
     /// strain moves its rest length [`Plasticity::fraction`] of the way to the length at
-    /// which its strain would be the yield strain. Nothing happens to an elastic material.
-    /// Returns how many springs flowed. (The stable-step estimate does not depend on rest
-    /// lengths, so it stays valid.)
+    /// which its strain would be the yield strain, and each hinge bent past the yield angle
+    /// its rest angle likewise. Nothing happens to an elastic material. Returns how many
+    /// springs and hinges flowed. (The stable-step estimate does not depend on rest lengths
+    /// or angles, so it stays valid.)
     pub fn flow(&mut self, points: &PointState, dt: f32) -> usize {
         let p = self.plasticity;
         if p.is_elastic() || dt.is_nan() || dt <= 0.0 {
             return 0;
         }
         let fraction = p.fraction(dt);
+        let hinges = self.hinges.flow(points, p.yield_angle, fraction);
         let (x, l) = (&points.x, &mut self.layout);
         let mut flowed = 0;
         for s in 0..l.len() {
@@ -501,7 +541,7 @@ impl Springs {
             l.rest[s] = rest + fraction * (at_yield - rest);
             flowed += 1;
         }
-        flowed
+        flowed + hinges
     }
 }
 

@@ -73,6 +73,15 @@ pub enum SolverError {
         /// Its value.
         value: f32,
     },
+    /// A hinge names a point twice or out of range, has a bad number, or its rest shape has a
+    /// triangle of (almost) no area.
+    #[error("hinge {hinge}: {what}")]
+    InvalidHinge {
+        /// The hinge's index.
+        hinge: usize,
+        /// What is wrong.
+        what: &'static str,
+    },
     /// An anchor's stiffness or damping is negative or not finite, or its target not finite.
     #[error("anchor on point {point}: {what} must be finite (and not negative)")]
     InvalidAnchor {
@@ -204,6 +213,8 @@ pub struct Energy {
     pub kinetic: f64,
     /// ½Σk(|l| − l⁰)² over springs.
     pub spring: f64,
+    /// Σk(θ − θ̄)² over hinges (see [`Hinges`]).
+    pub bending: f64,
     /// −Σm g·x over free points (zero at the origin).
     pub gravity: f64,
     /// ½Σk_r|target − x|² over anchors.
@@ -213,9 +224,9 @@ pub struct Energy {
 }
 
 impl Energy {
-    /// The sum of all five.
+    /// The sum of all six.
     pub fn total(&self) -> f64 {
-        self.kinetic + self.spring + self.gravity + self.anchor + self.pressure
+        self.kinetic + self.spring + self.bending + self.gravity + self.anchor + self.pressure
     }
 }
 

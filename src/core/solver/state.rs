@@ -9,7 +9,7 @@ use super::{Anchor, Diagnostics, Solver, SolverError, Stepper};
 
 /// Everything a run changes in a [`Solver`]: positions and velocities, masses and pins,
 /// every spring's rest length (plastic flow moves it), stiffness and damping (a material
-/// edit moves them), the anchors with their ids, the external forces, the gas's stiffness,
+/// edit moves them), every hinge's rest angle, stiffness and damping, the anchors with their ids, the external forces, the gas's stiffness,
 /// and what the stepper carries between steps (its running totals and the implicit solve's
 /// warm start). Not held: the settings and the springs' ends, which the surface's
 /// preparation gives again ([`Solver::restore`] checks the counts).
@@ -25,6 +25,10 @@ pub struct SolverState {
     pub pinned: Vec<u32>,
     /// Each spring's `[rest length, stiffness, damping]`, by the index it was given at.
     pub springs: Vec<[f32; 3]>,
+    /// Each hinge's `[rest angle, stiffness, damping]` (plastic flow and bakes move the rest
+    /// angles), in the order given (empty without hinges).
+    #[serde(default)]
+    pub hinges: Vec<[f32; 3]>,
     /// Every anchor slot as `(generation, anchor)`.
     pub anchor_slots: Vec<(u32, Option<Anchor>)>,
     /// The empty anchor slots, in the order they will be reused.
@@ -128,6 +132,12 @@ impl SolverState {
                 .map(|i| i as u32)
                 .collect(),
             springs,
+            hinges: parts
+                .springs
+                .hinges()
+                .iter()
+                .map(|h| [h.rest_angle, h.stiffness, h.damping])
+                .collect(),
             anchor_slots,
             free_anchor_slots,
             external: (0..parts.external.len())
@@ -167,6 +177,12 @@ impl SolverState {
                 parts.springs.len(),
             ));
         }
+        let hinges = parts.springs.hinges().len();
+        if state.hinges.len() != hinges {
+            return Err(SolverError::InvalidConfig(
+                "the snapshot's hinges do not match the surface's",
+            ));
+        }
         if !state.warm_start.is_empty() && state.warm_start.len() != n {
             return Err(mismatch("snapshot warm start", state.warm_start.len(), n));
         }
@@ -196,6 +212,9 @@ impl SolverState {
         let mut springs = parts.springs.clone();
         springs.set_rest_lengths(|i| state.springs[i][0])?;
         springs.set_parameters(|i| (state.springs[i][1], state.springs[i][2]))?;
+        if hinges > 0 {
+            springs.set_hinge_parameters(|i| state.hinges[i])?;
+        }
         let anchors = Anchors::from_slots(&state.anchor_slots, &state.free_anchor_slots, n)?;
         let mut external = ExternalForces::zeros(n);
         for (i, f) in state.external.iter().enumerate() {

@@ -62,6 +62,8 @@ pub struct Stepper {
     /// forces on `b` ends (see `springs`).
     pub(crate) fa: Soa3,
     pub(crate) fb: Soa3,
+    /// Each hinge's ∇θ at the state of the forces, for an implicit step.
+    pub(crate) hinge_gradients: Vec<[Vec3; 4]>,
     /// Whether `fa` and `fb` hold the forces at the current state (phase 1 ran).
     forces_ready: bool,
     /// Where explicit steps write the new state (see [`Stepper::integrate`]).
@@ -234,6 +236,10 @@ impl Stepper {
                 layout.accumulate::<true>(&points.x, v, &mut self.fa, &mut self.fb);
             }
         }
+        model
+            .springs
+            .hinges
+            .accumulate(points, &mut self.fa, &mut self.hinge_gradients);
         for a in model.anchors.live() {
             let i = a.point as usize;
             let f = a.stiffness * (a.target - points.x.get(i)) - a.damping * points.v.get(i);
@@ -553,6 +559,7 @@ impl Stepper {
     pub fn energy(&self, points: &PointState, model: Model<'_>) -> Energy {
         let mut e = Energy {
             spring: model.springs.energy(points),
+            bending: model.springs.hinges.energy(points),
             ..Energy::default()
         };
         let g = self.config.gravity.as_dvec3();
@@ -595,6 +602,7 @@ fn estimate_stability(config: &SolverConfig, model: Model<'_>) -> Stability {
             ratio = ratio.min(kd / k);
         }
     }
+    ratio = ratio.min(model.springs.hinges.stability_rows(&mut stiff, &mut damp));
     for a in model.anchors.live() {
         let i = a.point as usize;
         stiff[i] += f64::from(a.stiffness);

@@ -10,7 +10,7 @@ use egui_plot::{Legend, Line, Plot};
 
 use super::{HISTORY_SECONDS, PanelHistory, SurfacePanel};
 use crate::core::simplify::MIN_SIMULATION_POINTS;
-use crate::core::solver::{Integrator, MaterialUnits, SubstepPolicy};
+use crate::core::solver::{BendingModel, Integrator, MaterialUnits, SubstepPolicy};
 use crate::plugin::components::{
     DeformableSurface, DenseSurface, PreparationProgress, SimulationPoints, StepOnce,
     SurfaceInView, SurfaceMaterial, SurfaceNetwork, SurfaceSettings, SurfaceSleep, SurfaceSprings,
@@ -266,9 +266,11 @@ fn actions(
         ui.checkbox(&mut shown.points, "points");
         ui.checkbox(&mut shown.stretch, "stretch");
         ui.checkbox(&mut shown.bend, "bend");
+        ui.checkbox(&mut shown.hinges, "hinges");
         if shown.points != world.gizmos.points
             || shown.stretch != world.gizmos.stretch
             || shown.bend != world.gizmos.bend
+            || shown.hinges != world.gizmos.hinges
         {
             *world.gizmos = shown;
         }
@@ -285,7 +287,7 @@ fn tuning(
 ) {
     egui::CollapsingHeader::new("material")
         .default_open(true)
-        .show(ui, |ui| material(ui, s));
+        .show(ui, |ui| material(ui, entity, s, world));
     egui::CollapsingHeader::new("solver")
         .default_open(true)
         .show(ui, |ui| solver(ui, panel, s, world));
@@ -294,9 +296,10 @@ fn tuning(
         .show(ui, |ui| simplification(ui, entity, panel, s, world));
 }
 
-/// Stiffness, damping and plasticity (density is fixed once the masses are built), labelled
-/// in the material's units.
-fn material(ui: &mut egui::Ui, s: &mut PanelSurfaceItem) {
+/// Stiffness, damping, the bending model and plasticity (density is fixed once the masses are
+/// built), labelled in the material's units. Another bending model builds other springs, so
+/// choosing one prepares the surface again.
+fn material(ui: &mut egui::Ui, entity: Entity, s: &mut PanelSurfaceItem, world: &mut PanelWorld) {
     let mut m = s.material.0;
     ui.label(format!("density {} (set when prepared)", m.density));
     let (stiffness, damping, damping_range) = match m.units {
@@ -308,27 +311,64 @@ fn material(ui: &mut egui::Ui, s: &mut PanelSurfaceItem) {
         0.1..=10_000.0,
         format!("stretch {stiffness}"),
     ));
-    ui.add(log_slider(
-        &mut m.bend_stiffness,
-        0.01..=10_000.0,
-        format!("bend {stiffness}"),
-    ));
     ui.add(slider(
         &mut m.stretch_damping,
         damping_range.clone(),
         format!("stretch {damping}"),
     ));
-    ui.add(slider(
-        &mut m.bend_damping,
-        damping_range,
-        format!("bend {damping}"),
-    ));
+    ui.horizontal(|ui| {
+        ui.label("bending");
+        for (model, name) in [
+            (BendingModel::Springs, "bend springs"),
+            (BendingModel::Hinges, "hinges"),
+        ] {
+            ui.radio_value(&mut m.bending, model, name)
+                .on_hover_text("prepares the surface again");
+        }
+    });
+    match m.bending {
+        BendingModel::Springs => {
+            ui.add(log_slider(
+                &mut m.bend_stiffness,
+                0.01..=10_000.0,
+                format!("bend {stiffness}"),
+            ));
+            ui.add(slider(
+                &mut m.bend_damping,
+                damping_range,
+                format!("bend {damping}"),
+            ));
+        }
+        BendingModel::Hinges => {
+            ui.add(log_slider(
+                &mut m.bending_modulus,
+                1.0e-5..=100.0,
+                "bending modulus, N·m",
+            ));
+            ui.add(log_slider(
+                &mut m.bending_damping,
+                1.0e-4..=1.0,
+                "bending damping, s",
+            ));
+            ui.add(log_slider(
+                &mut m.yield_angle,
+                0.001..=3.0,
+                "yield angle, rad",
+            ));
+        }
+    }
     ui.add(log_slider(&mut m.yield_strain, 0.001..=1.0, "yield strain"));
     ui.add(slider(
         &mut m.creep_rate,
         0.0..=20.0,
         "creep rate (0: elastic)",
     ));
+    if m.bending != s.material.0.bending {
+        let mut config = s.surface.config;
+        config.material = m;
+        config.solver = *s.stepper.config();
+        world.commands.entity(entity).insert(PrepareAgain(config));
+    }
     if m != s.material.0 {
         s.material.0 = m;
     }

@@ -1,7 +1,8 @@
 //! `point-springs bench convergence`: does a coarse network model the same surface as a fine
 //! one? Three static problems, each prepared at several simplification levels (down from
-//! every dense point as a simulation point), with the material per spring (the paper's) and
-//! as a sheet's moduli (see `MaterialUnits`), run to equilibrium; the measured sag or depth
+//! every dense point as a simulation point), with the material per spring (the paper's), as a
+//! sheet's moduli (see `MaterialUnits`), and as a sheet bending on hinges (see
+//! `BendingModel::Hinges`), run to equilibrium; the measured sag or depth
 //! (on the dense surface, after the transfer) is compared with the same material's finest
 //! level. A Markdown table or JSON, the total mass against ρ times the dense area, and a chart
 //! (SVG and PNG) of the sag over the level.
@@ -15,7 +16,10 @@ use bevy_point_springs::core::cloud::shapes::{fibonacci_sphere, hat, square_shee
 use bevy_point_springs::core::pipeline::{PreparedSurface, SurfaceConfig, prepare_surface};
 use bevy_point_springs::core::scene::level_target;
 use bevy_point_springs::core::simplify::SimplifyConfig;
-use bevy_point_springs::core::solver::{Integrator, MaterialUnits, SolverConfig, SpringMaterial};
+use bevy_point_springs::core::solver::{
+    BendingModel, DEFAULT_BENDING_DAMPING, DEFAULT_YIELD_ANGLE, Integrator, MaterialUnits,
+    SolverConfig, SpringMaterial,
+};
 use glam::Vec3;
 use serde::Serialize;
 
@@ -45,9 +49,16 @@ const PER_SPRING: SpringMaterial = SpringMaterial {
     bend_stiffness: 20.0,
     stretch_damping: 0.6,
     bend_damping: 0.2,
+    bending: BendingModel::Springs,
+    bending_modulus: HINGE_MODULUS,
+    bending_damping: DEFAULT_BENDING_DAMPING,
     yield_strain: 0.1,
+    yield_angle: DEFAULT_YIELD_ANGLE,
     creep_rate: 0.0,
 };
+
+/// The flexural rigidity of the hinged material, N·m.
+const HINGE_MODULUS: f32 = 0.3;
 
 /// The sheet material that equals [`PER_SPRING`] on a regular triangle lattice: stretch
 /// modulus 2k/√3, bend modulus 2√3·k_b (bend springs span √3 spacings there).
@@ -59,6 +70,46 @@ fn sheet_material() -> SpringMaterial {
         stretch_damping: 0.3,
         bend_damping: 0.3,
         ..PER_SPRING
+    }
+}
+
+/// [`sheet_material`]'s stretch springs, bending on hinges of [`HINGE_MODULUS`] instead of bend
+/// springs.
+fn hinge_material() -> SpringMaterial {
+    SpringMaterial {
+        bending: BendingModel::Hinges,
+        ..sheet_material()
+    }
+}
+
+/// The materials compared.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, clap::ValueEnum)]
+#[serde(rename_all = "snake_case")]
+#[value(rename_all = "snake_case")]
+pub enum Material {
+    /// The paper's: stiffness per spring, bend springs.
+    PerSpring,
+    /// A sheet's moduli, bend springs.
+    Sheet,
+    /// A sheet's stretch modulus, hinges of a flexural rigidity.
+    Hinges,
+}
+
+impl Material {
+    fn material(self) -> SpringMaterial {
+        match self {
+            Self::PerSpring => PER_SPRING,
+            Self::Sheet => sheet_material(),
+            Self::Hinges => hinge_material(),
+        }
+    }
+
+    fn name(self) -> &'static str {
+        match self {
+            Self::PerSpring => "per spring",
+            Self::Sheet => "sheet",
+            Self::Hinges => "hinges",
+        }
     }
 }
 
@@ -87,6 +138,9 @@ pub struct Args {
     /// Steps of 1/30 s to equilibrium.
     #[arg(long, default_value_t = 450)]
     steps: usize,
+    /// The materials compared.
+    #[arg(long, value_enum, value_delimiter = ',', default_values_t = [Material::PerSpring, Material::Sheet, Material::Hinges])]
+    materials: Vec<Material>,
     /// Where the chart goes: this path with `.svg` and `.png`.
     #[arg(long, default_value = "convergence")]
     chart: PathBuf,
@@ -134,8 +188,7 @@ impl Problem {
 #[derive(Debug, Serialize)]
 struct Row {
     problem: Problem,
-    /// "per_spring" or "sheet".
-    units: &'static str,
+    material: Material,
     fraction: f32,
     sim_points: usize,
     dense_points: usize,
@@ -176,7 +229,7 @@ impl fmt::Display for ConvergenceReport {
                 f,
                 "| {:?} | {} | {} | {} | {:.4} | {:.4} | {:.3} | {:.1e} |",
                 r.problem,
-                r.units,
+                r.material.name(),
                 r.sim_points,
                 r.dense_points,
                 r.mass_ratio,
@@ -209,23 +262,30 @@ pub fn run(args: &Args) -> Result<(), Failure> {
     let mut series = Vec::new();
     for problem in Problem::ALL {
         let cloud = problem.cloud();
-        for material in [PER_SPRING, sheet_material()] {
-            let units = units_name(material.units);
+        for &material in &args.materials {
+            let name = material.name();
             let mut runs = Vec::new();
             for &fraction in &fractions {
-                eprintln!("bench convergence: {problem:?}, {units}, {fraction} of the points");
+                eprintln!("bench convergence: {problem:?}, {name}, {fraction} of the points");
                 runs.push(settle(problem, &cloud, material, fraction, args.steps)?);
             }
             let reference = runs.last().map_or(1.0, |r: &Row| r.sag);
             for r in &mut runs {
                 r.relative = r.sag / reference;
             }
+            // A colour per problem, a line per material (hinges solid, springs dashed).
             series.push(Series {
-                name: format!("{problem:?}, {}", units.replace('_', " ")),
+                name: format!("{problem:?}, {name}"),
                 points: runs
                     .iter()
                     .map(|r| (r.sim_points as f64, f64::from(r.relative)))
                     .collect(),
+                colour: Some(problem as usize),
+                dash: match material {
+                    Material::PerSpring => Some(3),
+                    Material::Sheet => Some(9),
+                    Material::Hinges => None,
+                },
             });
             rows.extend(runs);
         }
@@ -251,19 +311,11 @@ pub fn run(args: &Args) -> Result<(), Failure> {
     args.json.emit(&report)
 }
 
-/// The name of a material's units in the report.
-fn units_name(units: MaterialUnits) -> &'static str {
-    match units {
-        MaterialUnits::PerSpring => "per_spring",
-        MaterialUnits::Sheet => "sheet",
-    }
-}
-
 /// Prepares `cloud` at `fraction`, loads it as `problem` says and runs it `steps` steps.
 fn settle(
     problem: Problem,
     cloud: &PointCloud,
-    material: SpringMaterial,
+    kind: Material,
     fraction: f32,
     steps: usize,
 ) -> Result<Row, Failure> {
@@ -274,7 +326,7 @@ fn settle(
     };
     let config = SurfaceConfig {
         simplify: SimplifyConfig::target(target),
-        material,
+        material: kind.material(),
         solver: SolverConfig {
             integrator: Integrator::ImplicitEuler,
             gravity,
@@ -305,7 +357,7 @@ fn settle(
     let network = &surface.network;
     Ok(Row {
         problem,
-        units: units_name(material.units),
+        material: kind,
         fraction,
         sim_points: network.len(),
         dense_points: surface.dense.len(),

@@ -24,6 +24,7 @@ use bevy_point_springs::core::cloud::surfels::{
 };
 use bevy_point_springs::core::pipeline::{DenseCloud, PreparedSurface};
 use bevy_point_springs::core::scene::{Scene, Timeline};
+use bevy_point_springs::core::solver::BendingModel;
 use bevy_point_springs::prelude::{
     DeformableSurface, DenseSurface, PointSpringsPlugin, PointSpringsSystems, SurfaceStatus,
 };
@@ -55,8 +56,30 @@ pub struct Args {
     /// multi-threaded default (less dispatch cost per system when one surface is stepped).
     #[arg(long)]
     single_threaded: bool,
+    /// The bending model, in place of the scene's (its bend springs, or hinges).
+    #[arg(long, value_enum)]
+    bending: Option<Bending>,
     #[command(flatten)]
     json: JsonFlag,
+}
+
+/// A bending model on the command line.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum Bending {
+    /// The paper's bend springs.
+    Springs,
+    /// Hinges (discrete shells).
+    Hinges,
+}
+
+impl Bending {
+    /// The model.
+    pub fn model(self) -> BendingModel {
+        match self {
+            Self::Springs => BendingModel::Springs,
+            Self::Hinges => BendingModel::Hinges,
+        }
+    }
 }
 
 /// Largest dense cloud the generated scene takes.
@@ -78,6 +101,8 @@ struct PluginReport {
     sim_points: usize,
     /// Springs.
     springs: usize,
+    /// Hinges (bending; 0 with bend springs).
+    hinges: usize,
     /// The integrator.
     integrator: String,
     /// Ticks timed.
@@ -108,11 +133,12 @@ impl fmt::Display for PluginReport {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         writeln!(
             f,
-            "scene        {} ({} dense, {} simulation points, {} springs, {}; {} executor)",
+            "scene        {} ({} dense, {} simulation points, {} springs, {} hinges, {}; {} executor)",
             self.scene,
             self.dense_points,
             self.sim_points,
             self.springs,
+            self.hinges,
             self.integrator,
             self.executor
         )?;
@@ -239,6 +265,15 @@ fn dense_of(app: &App, entity: Entity) -> Result<&DenseCloud, Failure> {
 /// The scene to run (from `args.scene`, or generated with `steps` steps), its cloud and its
 /// name.
 fn scene(args: &Args, steps: usize) -> Result<(Scene, PointCloud, String), Failure> {
+    let (mut scene, cloud, name) = scene_as_given(args, steps)?;
+    if let Some(bending) = args.bending {
+        scene.material.bending = bending.model();
+    }
+    Ok((scene, cloud, name))
+}
+
+/// The scene of `args.scene`, or the generated sphere.
+fn scene_as_given(args: &Args, steps: usize) -> Result<(Scene, PointCloud, String), Failure> {
     Ok(match &args.scene {
         Some(path) => {
             let (scene, base) = Scene::load(path).map_err(Failure::bad_input)?;
@@ -409,6 +444,7 @@ fn report(
         dense_points: dense.len(),
         sim_points: core.surface.solver.len(),
         springs: core.surface.solver.spring_count(),
+        hinges: core.surface.solver.hinge_count(),
         integrator: scene.solver.integrator.to_string(),
         ticks: clock.timed,
         ms_prepare,

@@ -547,10 +547,7 @@ impl Report {
             let name = r.config();
             match series.iter_mut().find(|s| s.name == name) {
                 Some(s) => s.points.push(point),
-                None => series.push(Series {
-                    name,
-                    points: vec![point],
-                }),
+                None => series.push(Series::new(name, vec![point])),
             }
         }
         let front = self
