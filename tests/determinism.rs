@@ -129,6 +129,18 @@ fn the_kitten_scan_through_the_collapsed_mesh() {
 }
 
 #[test]
+fn the_sphere_poke_scene_on_hinges() {
+    let scenes = assets().join("scenes");
+    let (mut scene, base) = Scene::load(&scenes.join("sphere_poke.ron")).unwrap();
+    scene.material.bending = bevy_point_springs::core::solver::BendingModel::Hinges;
+    assert_deterministic(
+        "sphere_poke.ron on hinges",
+        &scene,
+        &base.join(&scene.cloud),
+    );
+}
+
+#[test]
 fn the_sphere_poke_scene() {
     let scenes = assets().join("scenes");
     let (scene, base) = Scene::load(&scenes.join("sphere_poke.ron")).unwrap();

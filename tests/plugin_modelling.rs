@@ -2,6 +2,7 @@
 //! through `ModelMessage`, and sleeping surfaces.
 
 use bevy::prelude::*;
+use bevy_point_springs::core::solver::BendingModel;
 use bevy_point_springs::plugin::DEFAULT_SLEEP_AFTER;
 use bevy_point_springs::prelude::*;
 
@@ -440,11 +441,16 @@ fn saved_outcomes(app: &mut App) -> Vec<SaveGameOutcome> {
         .collect()
 }
 
-/// A gas-filled sphere (1500 dense, 150 simulation points) named "sphere", its bottom
-/// pinned, made plastic; ready.
+/// A gas-filled sphere (1500 dense, 150 simulation points) named "sphere"; ready.
 fn named_gas_sphere(app: &mut App) -> Entity {
+    named_gas_sphere_bending(app, BendingModel::Springs)
+}
+
+/// [`named_gas_sphere`] bending as `bending` says.
+fn named_gas_sphere_bending(app: &mut App, bending: BendingModel) -> Entity {
     let mut surface = floating(1500, 150);
     surface.config.pressure = Some(200.0);
+    surface.config.material.bending = bending;
     let sphere = app
         .world_mut()
         .spawn((surface, SaveName("sphere".into())))
@@ -466,6 +472,88 @@ fn moving_bits(app: &App, e: Entity) -> (Bits, Bits, Bits) {
         bits(points.velocities()),
         bits(dense.positions().to_vec()),
     )
+}
+
+#[test]
+fn a_sculpted_and_baked_surface_on_hinges_goes_on_bit_for_bit_from_a_saved_game() {
+    let dir = std::env::temp_dir().join(format!("point-springs-hinges-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("hinges.save");
+    let mut app = create_app(&assets_dir(), TICK);
+    let sphere = named_gas_sphere_bending(&mut app, BendingModel::Hinges);
+    let hinges = |app: &App, e| {
+        let springs = app.world().get::<SurfaceSprings>(e).unwrap();
+        springs
+            .hinges()
+            .iter()
+            .map(|h| h.rest_angle.to_bits())
+            .collect::<Vec<_>>()
+    };
+    let prepared = hinges(&app, sphere);
+    assert!(prepared.len() > 300);
+    // Plastic bending: a grab bends the top past the yield angle, then the shape is baked.
+    let mut material = app.world_mut().get_mut::<SurfaceMaterial>(sphere).unwrap();
+    material.yield_angle = 0.02;
+    material.creep_rate = 5.0;
+    let (_, top) = nearest_point(&app, sphere, Vec3::Y);
+    app.world_mut().write_message(GrabMessage::Start {
+        key: 1,
+        surface: sphere,
+        at: top,
+    });
+    for i in 0..30 {
+        app.world_mut().write_message(GrabMessage::Move {
+            key: 1,
+            target: top + Vec3::Y * (0.01 * i as f32),
+        });
+        app.update();
+    }
+    assert!(hinges(&app, sphere) != prepared, "no rest angle flowed");
+    app.world_mut()
+        .write_message(ModelMessage::Bake { surface: sphere });
+    app.update();
+    assert_eq!(outcomes(&mut app)[0].result, Ok(()));
+    app.world_mut()
+        .write_message(SaveGameMessage::Save { path: file.clone() });
+    app.update();
+    assert_eq!(
+        saved_outcomes(&mut app)[0].result,
+        Ok(vec!["sphere".to_owned()])
+    );
+    let mut fresh = create_app(&assets_dir(), TICK);
+    let again = named_gas_sphere_bending(&mut fresh, BendingModel::Hinges);
+    fresh
+        .world_mut()
+        .write_message(SaveGameMessage::Load { path: file.clone() });
+    fresh.update();
+    assert_eq!(
+        saved_outcomes(&mut fresh)[0].result,
+        Ok(vec!["sphere".to_owned()])
+    );
+    assert_eq!(hinges(&app, sphere), hinges(&fresh, again));
+    // Both go on, the grab held and then let go: the same bits each tick.
+    for i in 0..40 {
+        for a in [&mut app, &mut fresh] {
+            if i == 20 {
+                a.world_mut().write_message(GrabMessage::End { key: 1 });
+            }
+            a.update();
+        }
+        assert!(
+            moving_bits(&app, sphere) == moving_bits(&fresh, again),
+            "tick {i} after the load"
+        );
+    }
+    // A saved game of bend springs does not fit a surface on hinges: a typed error.
+    let mut springs = create_app(&assets_dir(), TICK);
+    named_gas_sphere(&mut springs);
+    springs
+        .world_mut()
+        .write_message(SaveGameMessage::Load { path: file });
+    springs.update();
+    let result = saved_outcomes(&mut springs).remove(0).result;
+    assert!(result.is_err(), "{result:?}");
+    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]
