@@ -9,9 +9,9 @@ use super::{Anchor, Diagnostics, Solver, SolverError, Stepper};
 
 /// Everything a run changes in a [`Solver`]: positions and velocities, masses and pins,
 /// every spring's rest length (plastic flow moves it), stiffness and damping (a material
-/// edit moves them), every hinge's rest angle, stiffness and damping, the anchors with their ids, the external forces, the gas's stiffness,
-/// and what the stepper carries between steps (its running totals and the implicit solve's
-/// warm start). Not held: the settings and the springs' ends, which the surface's
+/// edit moves them), every hinge's rest angle, stiffness and damping, the anchors with their
+/// ids, the external forces, the gas's stiffness, and what the stepper carries between steps
+/// (its running totals and the implicit solve's warm start). Not held: the settings and the springs' ends, which the surface's
 /// preparation gives again ([`Solver::restore`] checks the counts).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct SolverState {
