@@ -459,6 +459,22 @@ fn named_gas_sphere_bending(app: &mut App, bending: BendingModel) -> Entity {
     sphere
 }
 
+/// A fresh app with [`named_gas_sphere_bending`] in it, the saved game at `file` loaded into
+/// it (which must succeed).
+fn loaded_in_a_fresh_app(file: &std::path::Path, bending: BendingModel) -> (App, Entity) {
+    let mut fresh = create_app(&assets_dir(), TICK);
+    let again = named_gas_sphere_bending(&mut fresh, bending);
+    fresh.world_mut().write_message(SaveGameMessage::Load {
+        path: file.to_path_buf(),
+    });
+    fresh.update();
+    assert_eq!(
+        saved_outcomes(&mut fresh)[0].result,
+        Ok(vec!["sphere".to_owned()])
+    );
+    (fresh, again)
+}
+
 /// Vectors as bits.
 type Bits = Vec<[u32; 3]>;
 
@@ -520,16 +536,7 @@ fn a_sculpted_and_baked_surface_on_hinges_goes_on_bit_for_bit_from_a_saved_game(
         saved_outcomes(&mut app)[0].result,
         Ok(vec!["sphere".to_owned()])
     );
-    let mut fresh = create_app(&assets_dir(), TICK);
-    let again = named_gas_sphere_bending(&mut fresh, BendingModel::Hinges);
-    fresh
-        .world_mut()
-        .write_message(SaveGameMessage::Load { path: file.clone() });
-    fresh.update();
-    assert_eq!(
-        saved_outcomes(&mut fresh)[0].result,
-        Ok(vec!["sphere".to_owned()])
-    );
+    let (mut fresh, again) = loaded_in_a_fresh_app(&file, BendingModel::Hinges);
     assert_eq!(hinges(&app, sphere), hinges(&fresh, again));
     // Both go on, the grab held and then let go: the same bits each tick.
     for i in 0..40 {
@@ -619,16 +626,7 @@ fn a_saved_game_goes_on_bit_for_bit_in_a_fresh_app() {
     let saved = saved_outcomes(&mut app);
     assert_eq!(saved[0].result, Ok(vec!["sphere".to_owned()]));
     // The same game, loaded into a fresh app once its sphere is ready.
-    let mut fresh = create_app(&assets_dir(), TICK);
-    let again = named_gas_sphere(&mut fresh);
-    fresh
-        .world_mut()
-        .write_message(SaveGameMessage::Load { path: file.clone() });
-    fresh.update();
-    assert_eq!(
-        saved_outcomes(&mut fresh)[0].result,
-        Ok(vec!["sphere".to_owned()])
-    );
+    let (mut fresh, again) = loaded_in_a_fresh_app(&file, BendingModel::Springs);
     assert_eq!(moving_bits(&app, sphere), moving_bits(&fresh, again));
     // Both go on, the grab (key 7) dragged further, then let go: the same bits each tick.
     for i in 0..60 {
