@@ -267,8 +267,8 @@ pub enum BendingModel {
     /// A hinge at every inner edge of the network's mesh (discrete shells, see
     /// [`Hinges`]) with the energy E = k·(θ − θ̄)², k = `bending_modulus`·3|ē|²/(6·Ā) (Ā the
     /// two triangles' rest area): a plate of flexural rigidity `bending_modulus` (N·m) with
-    /// the Poisson's ratio [`HINGE_POISSON_RATIO`], on any network spacing. No bend springs: the stretch springs alone
-    /// carry the sheet in its plane.
+    /// the Poisson's ratio [`HINGE_POISSON_RATIO`], on any network spacing. No bend springs:
+    /// the stretch springs alone carry the sheet in its plane.
     Hinges,
 }
 
@@ -285,12 +285,13 @@ pub const HINGE_PLATE_FACTOR: f32 = 6.0;
 /// The Poisson's ratio of bending on hinges (see [`HINGE_PLATE_FACTOR`]).
 pub const HINGE_POISSON_RATIO: f32 = -1.0 / 3.0;
 
-/// A surface's material: its density (the masses of eq 1) and the stiffness and damping of
+/// A surface's material: its density (the masses of eq 1), the stiffness and damping of
 /// the two kinds of spring of a [`SpringNetwork`], per spring or as a sheet's moduli (see
-/// [`MaterialUnits`]). In a scene file:
+/// [`MaterialUnits`]), and how it bends ([`BendingModel`]). In a scene file:
 /// `material: (density: 1.0, stretch_stiffness: 60.0, bend_stiffness: 20.0)`, or
-/// `material: (units: Sheet, stretch_stiffness: 200.0, stretch_damping: 0.1)`, every field
-/// optional.
+/// `material: (units: Sheet, stretch_stiffness: 200.0, stretch_damping: 0.1)`, or
+/// `material: (units: Sheet, stretch_stiffness: 70.0, bending: Hinges, bending_modulus: 0.3)`,
+/// every field optional.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct SpringMaterial {
