@@ -95,6 +95,17 @@ pub fn angle_difference(angle: f32, rest: f32) -> f32 {
     }
 }
 
+/// A finite angle taken into [−π, π]: as it is when it lies there (so that a rest angle read
+/// back from a snapshot keeps its bits), else wrapped by whole turns.
+fn principal(angle: f32) -> f32 {
+    use std::f32::consts::{PI, TAU};
+    if (-PI..=PI).contains(&angle) {
+        angle
+    } else {
+        (angle + PI).rem_euclid(TAU) - PI
+    }
+}
+
 /// The hinges of a surface (see the module docs), with their rest angles, stiffness and
 /// damping. Part of [`Springs`](super::Springs), so that wherever springs go — the Bevy
 /// layer's components, snapshots, bakes, plastic flow — bending goes too.
@@ -139,7 +150,7 @@ impl Hinges {
                 });
             };
             hinges.ends.push(ends);
-            hinges.rest.push(angle_difference(s.rest_angle, 0.0));
+            hinges.rest.push(principal(s.rest_angle));
             hinges.k.push(s.stiffness);
             hinges.c.push(s.damping);
             hinges.rest_gradient.push(g.gradient.map(Vec3::length));
@@ -249,8 +260,8 @@ impl Hinges {
         }));
     }
 
-    /// Sets every rest angle to the angle at `points` (a bake), keeping the hinges as they are
-    /// where a triangle has collapsed there, which is refused with nothing changed.
+    /// Sets every rest angle to the angle at `points` (a bake); refused, nothing changed,
+    /// where a hinge's triangle has collapsed there.
     pub fn set_rest_shape(&mut self, points: &PointState) -> Result<(), SolverError> {
         let mut rest = Vec::with_capacity(self.len());
         let mut norms = Vec::with_capacity(self.len());
@@ -286,7 +297,7 @@ impl Hinges {
             });
         }
         for (h, [r, k, c]) in values.into_iter().enumerate() {
-            self.rest[h] = angle_difference(r, 0.0);
+            self.rest[h] = principal(r);
             self.k[h] = k;
             self.c[h] = c;
         }
@@ -405,6 +416,8 @@ mod tests {
             )
             .is_err()
         );
+        assert_eq!(principal(0.1), 0.1);
+        assert!((principal(100.0) - (100.0 - 32.0 * std::f32::consts::PI)).abs() < 1e-4);
         let d = angle_difference(3.0, -3.0);
         assert!((d - (6.0 - std::f32::consts::TAU)).abs() < 1e-6);
     }
