@@ -3,6 +3,8 @@
 //! ```sh
 //! cargo run --release --features render --example hat
 //! cargo run --release --features render --example hat -- --screenshot hat.png --frames 300
+//! # the same hat bending on hinges, with the hinges drawn (green at rest, red bent)
+//! cargo run --release --features render --example hat -- scenes/hat_hinges.ron --gizmos
 //! ```
 //!
 //! The scene (`assets/scenes/hat.ron`) is loaded through the asset server and followed
@@ -32,12 +34,17 @@ fn main() -> AppExit {
 
 fn setup(
     mut commands: Commands,
+    args: Res<DemoArgs>,
     assets: Res<AssetServer>,
     mut meshes: ResMut<Assets<Mesh>>,
     mut materials: ResMut<Assets<StandardMaterial>>,
 ) {
     commands.spawn((
-        DeformableSurface::scene(assets.load("scenes/hat.ron")),
+        // Another scene of the same hat (`scenes/hat_hinges.ron`) when one is given.
+        DeformableSurface::scene(match &args.file {
+            Some(scene) => assets.load(scene.clone()),
+            None => assets.load("scenes/hat.ron"),
+        }),
         SurfelRender {
             color: Color::srgb(0.55, 0.42, 0.75),
             ..default()

@@ -133,10 +133,15 @@ fn every_scan_at_default_settings_falls_onto_a_floor_and_takes_a_grab() {
             .diagnostics();
         let health = app.world().get::<SurfaceHealth>(surface).unwrap();
         println!(
-            "{name} ({}): {} steps, {:.1} CG iterations a step",
+            "{name} ({}): {} steps, {:.1} CG iterations a step, {} guard trips, {} steps at \
+             the sub-step limit; fell {:.3} and the grab raised the top {:.3} of its size",
             if real { "scan" } else { "generated" },
             d.steps,
             d.cg_iterations as f64 / d.steps as f64,
+            d.guard_trips,
+            d.limited_steps,
+            (start.y - fallen.y) / size,
+            (grabbed_top.y - top.y) / size,
         );
         assert_eq!(d.guard_trips, 0, "{name}: {d:?}");
         assert!(health.episodes == 0, "{name}: {health:?}");

@@ -127,6 +127,20 @@ fn the_sphere_is_dented_where_it_is_poked_and_springs_back() {
 }
 
 #[test]
+fn the_hat_on_hinges_gets_its_crown_too() {
+    let (run, deformed) = run_scene("hat_hinges.ron", |_| {});
+    assert!(run.solver().hinge_count() > 500);
+    let moved = moves(&run, &deformed);
+    let (pole, pole_now) = moved
+        .iter()
+        .copied()
+        .min_by(|a, b| a.0.y.total_cmp(&b.0.y))
+        .unwrap();
+    let crown = pole.y - pole_now.y;
+    assert!(crown > 0.7 && crown < 1.0, "crown height {crown}");
+}
+
+#[test]
 fn the_hat_gets_a_crown_and_no_holes() {
     let (mut run, deformed) = run_scene("hat.ron", |_| {});
     // Asked again for the same state, the surface is the same (no new points).

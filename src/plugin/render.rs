@@ -469,8 +469,22 @@ fn draw_gizmos(
             }
         }
         let stretch_count = network.stretch.len();
+        // Where hinges are drawn, the stretch springs on their edges are not (the same lines:
+        // one colour would hide the other).
+        let hinged: std::collections::HashSet<(u32, u32)> = if settings.hinges {
+            springs
+                .hinges()
+                .iter()
+                .map(|h| (h.edge[0].min(h.edge[1]), h.edge[0].max(h.edge[1])))
+                .collect()
+        } else {
+            Default::default()
+        };
         for (index, spring) in springs.iter() {
             let is_stretch = index < stretch_count;
+            if is_stretch && hinged.contains(&(spring.a.min(spring.b), spring.a.max(spring.b))) {
+                continue;
+            }
             if (is_stretch && settings.stretch) || (!is_stretch && settings.bend) {
                 let color = if is_stretch {
                     stretch_color
