@@ -74,11 +74,18 @@ impl std::str::FromStr for Integrator {
     Debug, Clone, Copy, PartialEq, Eq, Hash, Default, serde::Serialize, serde::Deserialize,
 )]
 pub enum DampingModel {
-    /// The paper's eq 3: k_d·(v_b − v_a), the whole relative velocity (also damps sliding
-    /// and bending motion across the spring).
+    /// The paper's eq 3: k_d·(v_b − v_a), the whole relative velocity. It also damps
+    /// sliding and bending motion across the spring, and rigid rotation: a free surface
+    /// spinning at 1 rad/s stops within a second. The default: contacts reach the implicit
+    /// step only through estimated step masses, and their sideways kicks need eq 3's
+    /// damping (see `docs/ARCHITECTURE.md`); explicit Euler needs it too.
     #[default]
     Relative,
-    /// Along the spring only: k_d·((v_b − v_a)·l̂)·l̂, as most cloth codes do.
+    /// Along the spring only: k_d·((v_b − v_a)·l̂)·l̂, as most cloth codes do. A central
+    /// force, so it leaves rigid motion alone (with implicit Euler the step also keeps the
+    /// momenta, see `docs/ARCHITECTURE.md`); bending is damped by the hinges' own damping
+    /// ([`SpringMaterial::bending_damping`]) or the bend springs'. With explicit Euler its
+    /// stable-step estimate hands over to implicit Euler.
     Axial,
 }
 
@@ -261,7 +268,8 @@ pub enum BendingModel {
     /// The paper's bend springs (§4.2): a central spring from ring vertex r to r + 2. It
     /// resists folding only through the change of its length, which is of second order in
     /// the fold angle on flat ground, so finer networks are softer shells; the springs also
-    /// stiffen the sheet in its plane.
+    /// stiffen the sheet in its plane. The default, until contacts enter the implicit step
+    /// (see `docs/ARCHITECTURE.md`).
     #[default]
     Springs,
     /// A hinge at every inner edge of the network's mesh (discrete shells, see

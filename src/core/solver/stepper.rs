@@ -464,7 +464,7 @@ impl Stepper {
                     self.integrate::<true>(points, model.masses, h, speed)
                 }
                 Integrator::ImplicitEuler => {
-                    let cg = self.implicit_step(points, model, h);
+                    let cg = self.implicit_step(points, model, external, h);
                     report.cg_iterations += cg.iterations;
                     report.cg_converged &= cg.converged;
                     points.x.count_insane() + points.v.count_beyond(speed)

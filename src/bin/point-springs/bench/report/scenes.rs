@@ -10,7 +10,9 @@ use bevy_point_springs::core::cloud::io::read_cloud;
 use bevy_point_springs::core::cloud::shapes::{fibonacci_sphere, hat, square_sheet};
 use bevy_point_springs::core::scene::{Pull, Region, Scene, level_target};
 use bevy_point_springs::core::simplify::SimplifyConfig;
-use bevy_point_springs::core::solver::{Integrator, MaterialUnits, SolverConfig, SpringMaterial};
+use bevy_point_springs::core::solver::{
+    DampingModel, Integrator, MaterialUnits, SolverConfig, SpringMaterial,
+};
 use glam::Vec3;
 use serde::Serialize;
 
@@ -163,6 +165,9 @@ impl ReportScene {
             material,
             solver: SolverConfig {
                 integrator,
+                // Eq 3's damping, which explicit Euler needs (with axial damping it hands
+                // over to implicit Euler, and its rows would time implicit Euler).
+                damping_model: DampingModel::Relative,
                 gravity,
                 drag: DRAG,
                 ..SolverConfig::default()
