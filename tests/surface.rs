@@ -192,6 +192,78 @@ fn simplification_is_deterministic_whatever_the_thread_count() {
 }
 
 #[test]
+fn a_large_cloud_simplified_in_rounds_keeps_its_rim_its_rules_and_its_bits() {
+    // 60 000 points: the first 40 000 removals go in rounds of independent points (the
+    // rest one at a time), on both threads.
+    let rim = shapes::HAT_DEFAULT_RIM;
+    let hat = shapes::hat(60_000, 1.0, rim);
+    let config = SimplifyConfig {
+        rounds_above: 20_000,
+        ..SimplifyConfig::target(600)
+    };
+    let run = || simplify_cloud(&hat, &config).unwrap();
+    let a = run();
+    let one_thread = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap()
+        .install(run);
+    assert_eq!(a.kept, one_thread.kept);
+    let bits = |s: &Simplification| s.diameters.iter().map(|d| d.to_bits()).collect::<Vec<_>>();
+    assert_eq!(bits(&a), bits(&one_thread));
+    let (p, n) = a.gather(hat.positions(), hat.normals().unwrap());
+    let net = build_network(&p, &n, &NetworkConfig::default()).unwrap();
+    assert_valid(&net);
+    let r = net.report;
+    assert_eq!((r.components, r.boundary_loops), (1, 1), "{r:?}");
+    let step = r.max_diameter;
+    let rim_count = net
+        .positions
+        .iter()
+        .filter(|p| p.y > rim - 0.05 * step)
+        .count();
+    assert!(
+        r.boundary_points >= rim_count,
+        "{r:?}, {rim_count} points on the rim"
+    );
+    let area = 2.0 * PI * (1.0 + rim);
+    let rel = r.total_mass / area - 1.0;
+    assert!(rel.abs() < 0.05, "Σm vs area {rel}");
+    // The threshold rule holds exactly after rounds too.
+    let sphere = shapes::fibonacci_sphere(40_000, 1.0);
+    let d = 0.1;
+    let in_rounds = SimplifyConfig {
+        rounds_above: 20_000,
+        ..SimplifyConfig::max_diameter(d)
+    };
+    let by_threshold = simplify_cloud(&sphere, &in_rounds).unwrap();
+    assert_eq!(by_threshold.stop, StopReason::ThresholdReached);
+    assert!(by_threshold.min_diameter() >= d);
+    let n = by_threshold.kept.len();
+    assert!((1_000..20_000).contains(&n), "{n}");
+    // Duplicates go in rounds too, one of each pair.
+    let mut positions = sphere.positions()[..30_000].to_vec();
+    let mut normals = sphere.normals().unwrap()[..30_000].to_vec();
+    positions.extend_from_within(..2_000);
+    normals.extend_from_within(..2_000);
+    let twice = PointCloud::new(positions, Some(normals)).unwrap();
+    let config = SimplifyConfig {
+        rounds_above: 20_000,
+        ..SimplifyConfig::target(3_000)
+    };
+    let s = simplify_cloud(&twice, &config).unwrap();
+    assert_eq!(s.duplicates_removed, 2_000);
+    let mut kept: Vec<[u32; 3]> = s
+        .kept
+        .iter()
+        .map(|&i| twice.positions()[i as usize].to_array().map(f32::to_bits))
+        .collect();
+    kept.sort_unstable();
+    kept.dedup();
+    assert_eq!(kept.len(), 3_000);
+}
+
+#[test]
 fn threshold_rule_holds_exactly_and_combines_with_a_target() {
     let sphere = shapes::fibonacci_sphere(3203, 1.0);
     let d = 0.45;

@@ -12,8 +12,8 @@ use bevy_point_springs::core::network::{
 };
 use bevy_point_springs::core::normals::{DEFAULT_NORMAL_K, NormalSource, ensure_normals};
 use bevy_point_springs::core::simplify::{
-    DEFAULT_SIMPLIFY_K, Simplification, SimplifyConfig, SimplifyProgress, StopReason,
-    simplify_with_progress,
+    DEFAULT_ROUNDS_ABOVE, DEFAULT_SIMPLIFY_K, Simplification, SimplifyConfig, SimplifyProgress,
+    StopReason, simplify_with_progress,
 };
 use serde::Serialize;
 
@@ -31,6 +31,11 @@ pub struct Args {
     /// Stop when every region R is at least this wide (the paper's threshold on d).
     #[arg(long)]
     max_diameter: Option<f32>,
+    /// While more points than this are left, remove them in parallel rounds (the smallest
+    /// regions that do not touch one another together); below, one at a time, as the paper
+    /// does.
+    #[arg(long, default_value_t = DEFAULT_ROUNDS_ABOVE)]
+    rounds_above: usize,
     /// Neighbours per point for the local Delaunay rings (the paper's k, 10–20).
     #[arg(short, default_value_t = DEFAULT_SIMPLIFY_K)]
     k: usize,
@@ -234,6 +239,7 @@ pub fn run(args: &Args) -> Result<(), Failure> {
         target: args.target,
         max_diameter: args.max_diameter,
         denoise: args.denoise.into(),
+        rounds_above: args.rounds_above,
     };
     let network_config = NetworkConfig {
         k: args.k,

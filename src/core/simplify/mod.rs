@@ -19,6 +19,13 @@
 //!   are gone. (kiddo's mutable tree cannot be built over flat data: a bucket of more than 32
 //!   points with one equal coordinate cannot be split.)
 //!
+//! A large cloud (more than [`SimplifyConfig::rounds_above`] points left) is simplified in
+//! *rounds* first: the smallest keys are found by selection and made exact (their dirty
+//! points judged again together, on every thread), then the smallest points are removed in
+//! order, skipping any in the neighbour row or reverse list of one already taken, so that no
+//! removal of a round changes another's ring; a round takes at most one in 64 of the points
+//! left. Below the bound the queue takes over, one point at a time.
+//!
 //! Removing a neighbour almost always widens a ring, so a stale key is a lower bound of the
 //! true d and the clean point at the top really is the smallest. Before stopping on the
 //! threshold, every dirty point is re-evaluated once more, so the rule holds exactly: every
@@ -67,7 +74,28 @@ const REBUILD_DEAD: usize = 1;
 const REBUILD_OF: usize = 4;
 
 /// Points per rayon task when evaluating rings in bulk.
-const EVAL_CHUNK: usize = 512;
+const EVAL_CHUNK: usize = 64;
+
+/// The default of [`SimplifyConfig::rounds_above`]: a large scan (10^6 points) is
+/// simplified in rounds down to here, every smaller cloud one point at a time.
+pub const DEFAULT_ROUNDS_ABOVE: usize = 200_000;
+
+/// Rounds never run below this many points left, whatever [`SimplifyConfig::rounds_above`]
+/// says (a round's budget would be under two).
+const MIN_ROUND_POINTS: usize = 1_000;
+
+/// A round of removals takes at most one in this many of the points left: the smaller the
+/// share, the closer to removing one point at a time.
+const ROUND_SHARE: usize = 64;
+
+/// A round looks at this many times its budget of the smallest keys: the ones it skips as
+/// neighbours of the ones it takes need room.
+const ROUND_LOOKAHEAD: usize = 2;
+
+/// A round judges the stale keys among this many times its window's smallest keys at once
+/// (each stale key judged grows and lets the next one in; one at a time, that took a dozen
+/// passes a round).
+const STALE_WINDOW: usize = 2;
 
 /// Progress is reported about this many times over a run.
 const PROGRESS_STEPS: usize = 100;
@@ -90,6 +118,13 @@ pub struct SimplifyConfig {
     /// Whether to decide on the points projected on local fits (a noisy scan; see
     /// [`denoise`](crate::core::normals::denoise)). By default, when the cloud measures noisy.
     pub denoise: Denoise,
+    /// While more points than this are left, they are removed in rounds: the smallest
+    /// regions that do not touch one another together, the rings they change judged again
+    /// on every thread (a 10^6-point sphere to 10^4 on two threads: 23.5 s → 17.3 s with
+    /// the default). The networks differ from one-at-a-time removal as much as two nearby
+    /// levels do, not in kind. `usize::MAX` removes one point at a time throughout, as the
+    /// paper does. By default [`DEFAULT_ROUNDS_ABOVE`]; never below 1000 points.
+    pub rounds_above: usize,
 }
 
 impl Default for SimplifyConfig {
@@ -106,6 +141,7 @@ impl SimplifyConfig {
             target: Some(target),
             max_diameter: None,
             denoise: Denoise::Auto,
+            rounds_above: DEFAULT_ROUNDS_ABOVE,
         }
     }
 
@@ -116,6 +152,7 @@ impl SimplifyConfig {
             target: None,
             max_diameter: Some(diameter),
             denoise: Denoise::Auto,
+            rounds_above: DEFAULT_ROUNDS_ABOVE,
         }
     }
 }
@@ -286,7 +323,8 @@ pub fn simplify_with_progress(
     let order = morton_order(positions);
     let sorted: Vec<Vec3> = order.iter().map(|&i| positions[i as usize]).collect();
     let sorted_normals: Vec<Vec3> = order.iter().map(|&i| normals[i as usize]).collect();
-    let mut state = State::new(&sorted, &sorted_normals, config.k);
+    let rounds_above = config.rounds_above.max(MIN_ROUND_POINTS);
+    let mut state = State::new(&sorted, &sorted_normals, config.k, rounds_above);
     state.evaluate_all();
     if state.shapes.iter().all(|s| s.degenerate) {
         return Err(SimplifyError::NotASurface);

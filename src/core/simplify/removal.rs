@@ -46,6 +46,16 @@ pub(super) struct State<'a> {
     ring_mask: Vec<u64>,
     alive: Vec<bool>,
     dirty: Vec<bool>,
+    /// Points a round may not remove any more (a neighbour of one it removes).
+    blocked: Vec<bool>,
+    /// Each point's key at its last evaluation (the bits of its [`priority`]).
+    keys: Vec<u32>,
+    /// The remaining points in index order while rounds run (then empty).
+    remaining: Vec<u32>,
+    /// Whether the heap is kept: not while rounds run (they choose by selection).
+    queued: bool,
+    /// Rounds run while more points than this are left.
+    rounds_above: usize,
     generation: Vec<u32>,
     heap: BinaryHeap<Reverse<(u32, u32, u32)>>,
     left: usize,
@@ -70,7 +80,13 @@ fn priority(shape: &RingShape) -> f32 {
 }
 
 impl<'a> State<'a> {
-    pub(super) fn new(positions: &'a [Vec3], normals: &[Vec3], k: usize) -> Self {
+    pub(super) fn new(
+        positions: &'a [Vec3],
+        normals: &[Vec3],
+        k: usize,
+        rounds_above: usize,
+    ) -> Self {
+        let rounds = positions.len() > rounds_above;
         let n = positions.len();
         let ids: Vec<u32> = (0..n as u32).collect();
         let (tree, tree_ids) = build_tree(positions, ids);
@@ -88,6 +104,15 @@ impl<'a> State<'a> {
             ring_mask: vec![0; n],
             alive: vec![true; n],
             dirty: vec![false; n],
+            blocked: vec![false; n],
+            keys: vec![0; n],
+            remaining: if rounds {
+                (0..n as u32).collect()
+            } else {
+                Vec::new()
+            },
+            queued: !rounds,
+            rounds_above,
             generation: vec![0; n],
             heap: BinaryHeap::with_capacity(n),
             left: n,
@@ -213,11 +238,11 @@ impl<'a> State<'a> {
         self.dirty[iu] = false;
         self.generation[iu] = self.generation[iu].wrapping_add(1);
         self.evaluations += 1;
-        self.heap.push(Reverse((
-            priority(&shape).to_bits(),
-            i,
-            self.generation[iu],
-        )));
+        self.keys[iu] = priority(&shape).to_bits();
+        if self.queued {
+            self.heap
+                .push(Reverse((self.keys[iu], i, self.generation[iu])));
+        }
     }
 
     /// Re-evaluates one point (sequential path).
@@ -320,7 +345,27 @@ impl<'a> State<'a> {
         step: usize,
     ) -> StopReason {
         let threshold = config.max_diameter.unwrap_or(f32::INFINITY);
-        while let Some(Reverse((bits, i, generation))) = self.heap.pop() {
+        let mut round = Round::default();
+        loop {
+            if !self.queued {
+                let before = self.removed;
+                if self.left > self.rounds_above && self.round(floor, threshold, &mut round) {
+                    let report = SimplifyProgress {
+                        points: self.left,
+                        removed: self.removed,
+                        target: config.target,
+                        last_diameter: round.last,
+                    };
+                    if before / step != self.removed / step && progress(report).is_break() {
+                        return StopReason::Cancelled;
+                    }
+                    continue;
+                }
+                self.queue_all();
+            }
+            let Some(Reverse((bits, i, generation))) = self.heap.pop() else {
+                break;
+            };
             let iu = i as usize;
             if !self.alive[iu] || generation != self.generation[iu] {
                 continue;
@@ -364,6 +409,110 @@ impl<'a> State<'a> {
         StopReason::NothingRemovable
     }
 
+    /// One round of removals on a large cloud: the smallest keys, none a neighbour of
+    /// another, removed together, and the rings they change judged on every thread. Returns
+    /// whether it removed anything; when it did not (the front is past a stopping rule, or
+    /// the budget is under two), the one-at-a-time path goes on.
+    fn round(&mut self, floor: usize, threshold: f32, r: &mut Round) -> bool {
+        let budget = (self.left / ROUND_SHARE).min(self.left.saturating_sub(floor));
+        if budget < 2 {
+            return false;
+        }
+        let look = ROUND_LOOKAHEAD * budget;
+        self.exact_window(look, &mut r.window);
+        let k = self.k;
+        r.picked.clear();
+        let mut taken = 0;
+        for &(bits, i, _) in &r.window {
+            let d = f32::from_bits(bits);
+            // A duplicate goes whatever the rules (one of a coincident pair is the other's
+            // neighbour, so a round never takes both); the rounds run far above the floor.
+            let duplicate = d == 0.0;
+            let stops = d >= threshold || d.is_infinite();
+            if !duplicate && (stops || taken >= budget) {
+                break;
+            }
+            let iu = i as usize;
+            if self.blocked[iu] {
+                continue;
+            }
+            for &j in self.knn[iu * k..(iu + 1) * k].iter().chain(&self.rev[iu]) {
+                if j != NONE {
+                    self.blocked[j as usize] = true;
+                    r.touched.push(j);
+                }
+            }
+            self.blocked[iu] = true;
+            r.touched.push(i);
+            r.picked.push(i);
+            r.last = d;
+            if duplicate {
+                self.duplicates_removed += 1;
+            } else {
+                taken += 1;
+            }
+        }
+        for &j in &r.touched {
+            self.blocked[j as usize] = false;
+        }
+        r.touched.clear();
+        for &i in &r.picked {
+            self.remove(i);
+        }
+        !r.picked.is_empty()
+    }
+
+    /// Puts the `look` smallest keys of the remaining points into `window`, ascending, each
+    /// exact: the stale keys among twice as many are judged again together (on every
+    /// thread), until the front `look` are all clean. Stale keys are lower bounds, so no
+    /// point outside the window has a smaller key.
+    fn exact_window(&mut self, look: usize, window: &mut Vec<(u32, u32, u32)>) {
+        self.remaining.retain(|&i| self.alive[i as usize]);
+        loop {
+            window.clear();
+            window.extend(
+                self.remaining
+                    .iter()
+                    .map(|&i| (self.keys[i as usize], i, self.generation[i as usize])),
+            );
+            let wide = (STALE_WINDOW * look).min(window.len());
+            if wide < window.len() {
+                window.select_nth_unstable(wide.max(1) - 1);
+                window.truncate(wide);
+            }
+            let front = look.min(window.len());
+            if front > 0 && front < window.len() {
+                window.select_nth_unstable(front - 1);
+            }
+            if window[..front].iter().all(|e| !self.dirty[e.1 as usize]) {
+                window.truncate(front);
+                window.sort_unstable();
+                return;
+            }
+            let mut stale: Vec<u32> = window
+                .iter()
+                .map(|e| e.1)
+                .filter(|&i| self.dirty[i as usize])
+                .collect();
+            // In index order, so the rings are judged alike whatever the thread count.
+            stale.sort_unstable();
+            let _ = self.evaluate_batch(&stale);
+        }
+    }
+
+    /// Ends the rounds: from here on the heap orders the removals, one at a time.
+    fn queue_all(&mut self) {
+        self.queued = true;
+        self.heap.clear();
+        for i in std::mem::take(&mut self.remaining) {
+            let iu = i as usize;
+            if self.alive[iu] {
+                self.heap
+                    .push(Reverse((self.keys[iu], i, self.generation[iu])));
+            }
+        }
+    }
+
     /// Refreshes stale points and collects the result.
     pub(super) fn finish(mut self, stop: StopReason) -> Simplification {
         let stale: Vec<u32> = (0..self.positions.len() as u32)
@@ -391,6 +540,19 @@ impl<'a> State<'a> {
             point_areas: std::mem::take(&mut self.areas),
         }
     }
+}
+
+/// Buffers a round of removals keeps between rounds.
+#[derive(Default)]
+struct Round {
+    /// The round's window: (key, point, generation), ascending.
+    window: Vec<(u32, u32, u32)>,
+    /// The points it removes.
+    picked: Vec<u32>,
+    /// The points it marked blocked.
+    touched: Vec<u32>,
+    /// The key of the last point it removed.
+    last: f32,
 }
 
 /// A k-d tree over the points `ids` of `positions`; items index the returned id list.
