@@ -4,7 +4,9 @@
 use std::f32::consts::PI;
 
 use bevy_point_springs::core::cloud::io::read_cloud;
-use bevy_point_springs::core::network::{NetworkConfig, NetworkError, build_network};
+use bevy_point_springs::core::network::{
+    NetworkConfig, NetworkError, SpringNetwork, build_network,
+};
 use bevy_point_springs::core::normals::{DEFAULT_NORMAL_K, ensure_normals};
 use bevy_point_springs::core::simplify::{
     Simplification, SimplifyConfig, SimplifyError, StopReason, simplify, simplify_cloud,
@@ -101,10 +103,18 @@ fn hat_keeps_one_clean_boundary_loop() {
     let rim = shapes::HAT_DEFAULT_RIM;
     let hat = shapes::hat(4000, 1.0, rim);
     let (_, net) = network_of(&hat, 300, 1.0);
-    assert_valid(&net);
+    let rel = assert_one_rim_loop(&net, rim);
+    let r = net.report;
+    println!("hat: {r:?}, Σm vs area {:+.2} %", 100.0 * rel);
+}
+
+/// Asserts that a hat's network is valid, one piece with one boundary loop, its boundary
+/// points on the rim (within a sampling step) and every point on the rim a boundary point,
+/// and its mass within 5 % of the hat's area; returns the mass's relative error.
+fn assert_one_rim_loop(net: &SpringNetwork, rim: f32) -> f32 {
+    assert_valid(net);
     let r = net.report;
     assert_eq!((r.components, r.boundary_loops), (1, 1), "{r:?}");
-    // Boundary points lie on the rim (within a sampling step), interior points do not.
     let step = r.max_diameter;
     for (p, b) in net.positions.iter().zip(&net.boundary) {
         if *b {
@@ -125,8 +135,24 @@ fn hat_keeps_one_clean_boundary_loop() {
     );
     let area = 2.0 * PI * (1.0 + rim);
     let rel = r.total_mass / area - 1.0;
-    println!("hat: {r:?}, Σm vs area {:+.2} %", 100.0 * rel);
-    assert!(rel.abs() < 0.05);
+    assert!(rel.abs() < 0.05, "Σm vs area {rel}");
+    rel
+}
+
+/// Simplifies `cloud` on every thread and on one, asserts the two agree bit for bit, and
+/// returns the result.
+fn simplify_on_any_thread_count(cloud: &PointCloud, config: &SimplifyConfig) -> Simplification {
+    let run = || simplify_cloud(cloud, config).unwrap();
+    let a = run();
+    let one_thread = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap()
+        .install(run);
+    assert_eq!(a.kept, one_thread.kept);
+    let bits = |s: &Simplification| s.diameters.iter().map(|d| d.to_bits()).collect::<Vec<_>>();
+    assert_eq!(bits(&a), bits(&one_thread));
+    a
 }
 
 #[test]
@@ -178,17 +204,8 @@ fn real_scans_give_valid_networks() {
 fn simplification_is_deterministic_whatever_the_thread_count() {
     let sphere = shapes::fibonacci_sphere(5000, 1.0);
     let config = SimplifyConfig::target(400);
-    let run = || simplify_cloud(&sphere, &config).unwrap();
-    let a = run();
-    let one_thread = rayon::ThreadPoolBuilder::new()
-        .num_threads(1)
-        .build()
-        .unwrap()
-        .install(run);
-    assert_eq!(a.kept, one_thread.kept);
-    let bits = |s: &Simplification| s.diameters.iter().map(|d| d.to_bits()).collect::<Vec<_>>();
-    assert_eq!(bits(&a), bits(&one_thread));
-    assert_eq!(a, run());
+    let a = simplify_on_any_thread_count(&sphere, &config);
+    assert_eq!(a, simplify_cloud(&sphere, &config).unwrap());
 }
 
 #[test]
@@ -201,34 +218,10 @@ fn a_large_cloud_simplified_in_rounds_keeps_its_rim_its_rules_and_its_bits() {
         rounds_above: 20_000,
         ..SimplifyConfig::target(600)
     };
-    let run = || simplify_cloud(&hat, &config).unwrap();
-    let a = run();
-    let one_thread = rayon::ThreadPoolBuilder::new()
-        .num_threads(1)
-        .build()
-        .unwrap()
-        .install(run);
-    assert_eq!(a.kept, one_thread.kept);
-    let bits = |s: &Simplification| s.diameters.iter().map(|d| d.to_bits()).collect::<Vec<_>>();
-    assert_eq!(bits(&a), bits(&one_thread));
+    let a = simplify_on_any_thread_count(&hat, &config);
     let (p, n) = a.gather(hat.positions(), hat.normals().unwrap());
     let net = build_network(&p, &n, &NetworkConfig::default()).unwrap();
-    assert_valid(&net);
-    let r = net.report;
-    assert_eq!((r.components, r.boundary_loops), (1, 1), "{r:?}");
-    let step = r.max_diameter;
-    let rim_count = net
-        .positions
-        .iter()
-        .filter(|p| p.y > rim - 0.05 * step)
-        .count();
-    assert!(
-        r.boundary_points >= rim_count,
-        "{r:?}, {rim_count} points on the rim"
-    );
-    let area = 2.0 * PI * (1.0 + rim);
-    let rel = r.total_mass / area - 1.0;
-    assert!(rel.abs() < 0.05, "Σm vs area {rel}");
+    assert_one_rim_loop(&net, rim);
     // The threshold rule holds exactly after rounds too.
     let sphere = shapes::fibonacci_sphere(40_000, 1.0);
     let d = 0.1;
