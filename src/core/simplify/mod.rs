@@ -18,8 +18,9 @@
 //!   the removed ones, and asks for more when too few remain. The tree is rebuilt from the
 //!   remaining points whenever a quarter of the points it holds are gone. Each point keeps
 //!   the spares too: while k of its k + 8 are left and the k-th is nearer than anything its
-//!   query passed over, they are its k nearest and a re-evaluation needs no query. (kiddo's mutable tree cannot be built over flat data: a bucket of more than 32
-//!   points with one equal coordinate cannot be split.)
+//!   query passed over, they are its k nearest and a re-evaluation needs no query. (kiddo's
+//!   mutable tree cannot be built over flat data: a bucket of more than 32 points with one
+//!   equal coordinate cannot be split.)
 //!
 //! A large cloud (more than [`SimplifyConfig::rounds_above`] points left) is simplified in
 //! *rounds* first: the smallest keys are found by selection and made exact (their dirty
@@ -76,10 +77,10 @@ const REBUILD_DEAD: usize = 1;
 const REBUILD_OF: usize = 4;
 
 /// Neighbours kept beyond the k of each point's last evaluation. Points are only ever
-/// removed, so as long as k of the k + NEIGHBOUR_SPARES it had are left and the k-th of them is
-/// nearer than anything the query that found them passed over, they are still its k nearest
-/// remaining: most re-evaluations then need no k-d query (the query was a quarter of §3's
-/// time on a 10^6-point sphere).
+/// removed, so as long as k of the k + NEIGHBOUR_SPARES it had are left and the k-th of them
+/// is nearer than anything the query that found them passed over, they are still its k
+/// nearest remaining: about half the re-evaluations then need no k-d query (the query was a
+/// quarter of §3's time on a 10^6-point sphere).
 const NEIGHBOUR_SPARES: usize = 8;
 
 /// A spare neighbour list answers only while its k-th point is nearer than this share of
