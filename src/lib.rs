@@ -69,7 +69,7 @@ pub mod prelude {
 
     #[cfg(feature = "rapier")]
     pub use crate::plugin::contact::{
-        ContactDiagnostics, SurfaceContact, SurfaceContactPlugin, SurfaceContacts,
+        ContactDiagnostics, ContactSolve, SurfaceContact, SurfaceContactPlugin, SurfaceContacts,
     };
     #[cfg(feature = "egui")]
     pub use crate::plugin::panel::{PointSpringsPanelPlugin, SurfacePanel};

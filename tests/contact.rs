@@ -311,13 +311,25 @@ fn bodies_the_surface_filters_out_and_sensors_fall_through() {
     assert!(translation(&app, caught).y > -1.2, "caught by the hat");
 }
 
-#[test]
-fn a_kinematic_paddle_pushes_the_surface_and_is_not_pushed_back() {
+/// How far below the paddle's face the points under it end, less their spheres' radii: 0
+/// for points resting on the face, positive for points pushed past it.
+struct PaddlePush {
+    /// How far the hat's bottom went down.
+    bottom: f32,
+    /// The farthest and the nearest point under the paddle, as gaps to its face.
+    deepest: f32,
+    shallowest: f32,
+    /// Whether every point's centre is below the face.
+    centres_below: bool,
+}
+
+/// A 0.4 m square paddle, its face 0.2 above the hanging hat's bottom, driven down at 1 m/s
+/// for half a second (its face ends 0.3 below where the bottom was), against a hat whose
+/// contacts with bodies nothing moves are `solve`d.
+fn push_the_hat_with_a_paddle(solve: ContactSolve) -> PaddlePush {
     let mut app = create_app(Vec3::ZERO);
-    let hat = spawn_hat(&mut app, ());
+    let hat = spawn_hat(&mut app, SurfaceContact { solve, ..default() });
     let bottom_at_rest = lowest(&app, hat);
-    // A 0.4 m square paddle, its face 0.2 above the bowl's bottom, driven down at 1 m/s for
-    // half a second: its face ends 0.3 below where the bottom was.
     let speed = Vec3::new(0.0, -1.0, 0.0);
     let paddle = app
         .world_mut()
@@ -333,16 +345,6 @@ fn a_kinematic_paddle_pushes_the_surface_and_is_not_pushed_back() {
     }
     let centre = translation(&app, paddle);
     let face = centre.y - 0.05;
-    let points = app.world().get::<SimulationPoints>(hat).unwrap();
-    let under: Vec<Vec3> = points
-        .iter_positions()
-        .filter(|p| (p.x - centre.x).abs() < 0.15 && (p.z - centre.z).abs() < 0.15)
-        .collect();
-    let pushed = bottom_at_rest - lowest(&app, hat);
-    println!(
-        "paddle face at {face:.3}; the bottom went down {pushed:.3}; {} points under the paddle",
-        under.len()
-    );
     assert!(
         (face - (-1.3)).abs() < 0.02,
         "the paddle kept its course: {face}"
@@ -351,13 +353,45 @@ fn a_kinematic_paddle_pushes_the_surface_and_is_not_pushed_back() {
         (velocity(&app, paddle) - speed).length() < 1e-5,
         "the paddle keeps its speed"
     );
-    assert!(!under.is_empty());
-    assert!(
-        under.iter().all(|p| p.y < face),
-        "every point under the paddle is still below its face"
-    );
     let contacts = app.world().get::<SurfaceContacts>(hat).unwrap();
     assert!(contacts.total_impulse.y < 0.0, "{}", contacts.total_impulse);
+    let radii = contacts.radii();
+    let points = app.world().get::<SimulationPoints>(hat).unwrap();
+    let under: Vec<(usize, Vec3)> = points
+        .iter_positions()
+        .enumerate()
+        .filter(|(_, p)| (p.x - centre.x).abs() < 0.15 && (p.z - centre.z).abs() < 0.15)
+        .collect();
+    let centres_below = under.iter().all(|(_, p)| p.y < face);
+    let under: Vec<f32> = under.iter().map(|(i, p)| face - p.y - radii[*i]).collect();
+    assert!(!under.is_empty());
+    let push = PaddlePush {
+        bottom: bottom_at_rest - lowest(&app, hat),
+        deepest: under.iter().copied().fold(f32::NEG_INFINITY, f32::max),
+        shallowest: under.iter().copied().fold(f32::INFINITY, f32::min),
+        centres_below,
+    };
+    println!(
+        "{solve:?}: the bottom went down {:.3}; {} points under the paddle, {:.4} to {:.4} past its face",
+        push.bottom,
+        under.len(),
+        push.shallowest,
+        push.deepest
+    );
+    push
+}
+
+#[test]
+fn a_kinematic_paddle_pushes_the_surface_as_far_as_it_goes_and_is_not_pushed_back() {
+    // Solved in the step, the points under the paddle rest on its face: pushed past it by
+    // less than 10 % of its 0.3 m travel (issue 35), and none is left inside it.
+    let push = push_the_hat_with_a_paddle(ContactSolve::InStep);
+    assert!(push.shallowest > -0.01, "a point inside the paddle");
+    assert!(push.deepest < 0.03, "over-pushed by {}", push.deepest);
+    // Estimated, no point passes the paddle either, but their spheres sink into it (by 3.6
+    // to 3.8 cm, measured 2026-12-03).
+    let push = push_the_hat_with_a_paddle(ContactSolve::Estimated);
+    assert!(push.centres_below, "a point passed the paddle");
 }
 
 #[test]

@@ -61,7 +61,9 @@ pub use components::{
     SurfaceTimings, SurfaceWork, TransferTiming,
 };
 #[cfg(feature = "rapier")]
-pub use contact::{ContactDiagnostics, SurfaceContact, SurfaceContactPlugin, SurfaceContacts};
+pub use contact::{
+    ContactDiagnostics, ContactSolve, SurfaceContact, SurfaceContactPlugin, SurfaceContacts,
+};
 pub use grab::{GrabMessage, GrabSettings, Grabs};
 pub use health::{STABLE_STEPS_TO_RECOVER, SurfaceHealth, SurfaceUnstable};
 pub use model::{ModelMessage, ModelOutcome};

@@ -24,6 +24,7 @@
 
 use glam::{DMat3, DVec3};
 
+use super::contact::{StepContact, step};
 use super::parts::{ExternalForces, HingeBlock, PointState, Springs};
 use super::springs::COINCIDENT_DISTANCE;
 use super::stepper::{Model, Stepper};
@@ -154,6 +155,8 @@ pub(crate) struct Scratch {
     gas: Vec<DVec3>,
     /// Each hinge's gradient and scale.
     hinges: Vec<HingeBlock>,
+    /// Each point's contact normal while a contact holds it in the solve (zero: free).
+    normal: Vec<DVec3>,
 }
 
 impl Scratch {
@@ -184,6 +187,8 @@ impl Scratch {
             v.resize(n, DVec3::ZERO);
         }
         self.own.resize(n, 0.0);
+        self.normal.clear();
+        self.normal.resize(n, DVec3::ZERO);
         self.diag.resize(n, Sym3::default());
         self.diag_inv.resize(n, Sym3::default());
         self.fixed.resize(n, false);
@@ -289,8 +294,16 @@ impl Stepper {
             hinge_gradients: &self.hinge_gradients,
         };
         let gas_scale = assemble(&mut scratch, forces, points, model, &config, h);
-        let outcome = conjugate_gradient(&config, model.springs, &mut scratch, gas_scale);
-        if config.damping_model == DampingModel::Axial {
+        let mut contacts = Contacts::new(&external.contacts, points, model);
+        let outcome = conjugate_gradient(
+            &config,
+            model.springs,
+            &mut scratch,
+            gas_scale,
+            &mut contacts,
+        );
+        let held = contacts.slide(&mut scratch, points, &mut self.contact_impulses);
+        if config.damping_model == DampingModel::Axial && !held {
             keep_momenta(&mut scratch, points, model, external, &config, h);
         }
 
@@ -525,22 +538,201 @@ fn outer(a: DVec3, b: DVec3) -> DMat3 {
     DMat3::from_cols(a * b.x, a * b.y, a * b.z)
 }
 
-/// Solves the step's system by preconditioned conjugate gradient, from the warm start.
+/// Most solves one step makes to settle which contacts hold their points (a contact that
+/// would pull its point is let go; a point let go that passes its body is held again).
+const CONTACT_PASSES: u32 = 4;
+
+/// The contacts of one implicit step ([`StepContact`]), one per point: while a contact holds
+/// its point, the point's velocity along the normal is prescribed (the least the contact
+/// allows) and the solve finds the rest, the point's neighbours moving with it; the push
+/// that took is read back from the residual, λ = n̂·(A·Δv − b)ᵢ. A contact that pulls
+/// (λ < 0) lets go and the step is solved again, as is one whose point, let go, passes the
+/// body: an active set over at most [`CONTACT_PASSES`] solves, each warm-started from the
+/// last. Friction follows at the velocity level, capped by μ·λ/m.
+struct Contacts<'a> {
+    contacts: &'a [StepContact],
+    /// The contacts kept, as indices into `contacts`.
+    kept: Vec<usize>,
+    /// Whether each kept contact holds its point.
+    holds: Vec<bool>,
+    /// The push λ along the normal each kept contact gave in the last solve (N·s; 0 when it
+    /// did not hold).
+    push: Vec<f64>,
+    /// Each kept contact's point's velocity at the step's start.
+    v0: Vec<DVec3>,
+}
+
+impl<'a> Contacts<'a> {
+    fn new(contacts: &'a [StepContact], points: &PointState, model: Model<'_>) -> Self {
+        let kept = if contacts.is_empty() {
+            Vec::new()
+        } else {
+            step::one_per_point(contacts, points, model.masses)
+        };
+        let v0 = kept
+            .iter()
+            .map(|&k| points.v.get(contacts[k].point as usize).as_dvec3())
+            .collect();
+        Self {
+            contacts,
+            holds: vec![false; kept.len()],
+            push: vec![0.0; kept.len()],
+            kept,
+            v0,
+        }
+    }
+
+    /// The first guess of which contacts hold: those whose point, moved by the step's
+    /// right-hand side over its own part of the matrix (the explicit estimate, which
+    /// overshoots), would end below its least normal speed.
+    fn guess(&mut self, s: &Scratch, own: &[f64]) {
+        for k in 0..self.kept.len() {
+            let (i, n, min_speed) = self.get(k);
+            let own = own[i];
+            let estimate = if own > 0.0 {
+                s.rhs[i] / own
+            } else {
+                DVec3::ZERO
+            };
+            self.holds[k] = n.dot(self.v0[k] + estimate) < min_speed - step::SPEED_SLACK;
+        }
+    }
+
+    fn is_empty(&self) -> bool {
+        self.kept.is_empty()
+    }
+
+    /// Kept contact `k`: its point, unit normal and the least normal speed.
+    fn get(&self, k: usize) -> (usize, DVec3, f64) {
+        let c = &self.contacts[self.kept[k]];
+        (
+            c.point as usize,
+            c.normal.as_dvec3(),
+            f64::from(c.min_speed),
+        )
+    }
+
+    /// The normal velocity change kept contact `k` asks of its point.
+    fn asked(&self, k: usize) -> f64 {
+        let (_, n, min_speed) = self.get(k);
+        min_speed - n.dot(self.v0[k])
+    }
+
+    /// Sets the filter's normals and, on each held point, Δv's part along its normal.
+    fn hold(&self, s: &mut Scratch) {
+        s.normal.fill(DVec3::ZERO);
+        for k in 0..self.kept.len() {
+            if self.holds[k] {
+                let (i, n, _) = self.get(k);
+                s.normal[i] = n;
+                let along = n.dot(s.dv[i]);
+                s.dv[i] += n * (self.asked(k) - along);
+            }
+        }
+    }
+
+    /// The solve: passes of the filtered PCG until no contact changes.
+    fn solve(
+        &mut self,
+        config: &SolverConfig,
+        system: &System<'_>,
+        s: &mut Scratch,
+        b_norm: f64,
+    ) -> CgOutcome {
+        // The scale of the residual: the right-hand side, or what the contacts ask.
+        let asked = (0..self.kept.len())
+            .map(|k| (system.own[self.get(k).0] * self.asked(k)).powi(2))
+            .sum::<f64>()
+            .sqrt();
+        let scale = b_norm.max(asked);
+        self.guess(s, system.own);
+        let tolerance = f64::from(config.cg_tolerance) * scale;
+        let mut outcome = CgOutcome {
+            iterations: 0,
+            converged: true,
+        };
+        for _ in 0..CONTACT_PASSES {
+            self.hold(s);
+            let pass = iterate(config, system, s, tolerance, scale, true);
+            outcome.iterations += pass.iterations;
+            outcome.converged = pass.converged;
+            if !s.dv.iter().all(|d| d.is_finite()) {
+                break;
+            }
+            system.apply(&s.dv, &mut s.q);
+            if !self.settle(s) {
+                break;
+            }
+        }
+        s.normal.fill(DVec3::ZERO);
+        outcome
+    }
+
+    /// Reads each held contact's push from `s.q` = A·Δv and lets go of those that pull;
+    /// holds again each point let go that passes its body. Returns whether any changed.
+    fn settle(&mut self, s: &Scratch) -> bool {
+        let mut changed = false;
+        for k in 0..self.kept.len() {
+            let (i, n, min_speed) = self.get(k);
+            if self.holds[k] {
+                let push = n.dot(s.q[i] - s.rhs[i]);
+                self.push[k] = push;
+                if push < 0.0 {
+                    self.holds[k] = false;
+                    changed = true;
+                }
+            } else {
+                self.push[k] = 0.0;
+                if n.dot(self.v0[k] + s.dv[i]) < min_speed - step::SPEED_SLACK {
+                    self.holds[k] = true;
+                    changed = true;
+                }
+            }
+        }
+        changed
+    }
+
+    /// Friction on the points the last solve held, and each contact's impulse added to
+    /// `impulses` (one per contact handed in); returns whether any contact held.
+    fn slide(&self, s: &mut Scratch, points: &PointState, impulses: &mut [glam::Vec3]) -> bool {
+        let mut held = false;
+        for k in 0..self.kept.len() {
+            let push = self.push[k];
+            if push == 0.0 {
+                continue;
+            }
+            held = true;
+            let c = &self.contacts[self.kept[k]];
+            let (i, n, _) = self.get(k);
+            let mass = s.own[i];
+            let relative = points.v.get(i).as_dvec3() + s.dv[i] - c.body_velocity.as_dvec3();
+            let slide = step::friction_dv(relative, n, f64::from(c.friction), push / mass);
+            s.dv[i] += slide;
+            if let Some(out) = impulses.get_mut(self.kept[k]) {
+                *out += (n * push + slide * mass).as_vec3();
+            }
+        }
+        held
+    }
+}
+
+/// Solves the step's system by preconditioned conjugate gradient, from the warm start, with
+/// the points the `contacts` hold held.
 fn conjugate_gradient(
     config: &SolverConfig,
     springs: &Springs,
     s: &mut Scratch,
     gas_scale: f64,
+    contacts: &mut Contacts<'_>,
 ) -> CgOutcome {
     let b_norm = dot(&s.rhs, &s.rhs).sqrt();
-    if b_norm == 0.0 || !b_norm.is_finite() {
+    if !b_norm.is_finite() || (b_norm == 0.0 && contacts.is_empty()) {
         s.reset_warm_start();
         return CgOutcome {
             iterations: 0,
             converged: b_norm == 0.0,
         };
     }
-    let tolerance = f64::from(config.cg_tolerance) * b_norm;
     let own = std::mem::take(&mut s.own);
     let blocks = std::mem::take(&mut s.blocks);
     let fixed = std::mem::take(&mut s.fixed);
@@ -558,7 +750,12 @@ fn conjugate_gradient(
         hinges: &hinges,
         hinge_ends: &springs.hinges.ends,
     };
-    let outcome = iterate(config, &system, s, tolerance, b_norm);
+    let outcome = if contacts.is_empty() {
+        let tolerance = f64::from(config.cg_tolerance) * b_norm;
+        iterate(config, &system, s, tolerance, b_norm, false)
+    } else {
+        contacts.solve(config, &system, s, b_norm)
+    };
     s.own = own;
     s.blocks = blocks;
     s.fixed = fixed;
@@ -577,30 +774,50 @@ fn precondition(diag_inv: &[Sym3], r: &[DVec3], z: &mut [DVec3]) -> f64 {
     rz
 }
 
-/// Preconditioned conjugate gradient on `system` from the warm start in `s.dv`.
+/// Removes from each vector its part along its point's contact normal (Baraff & Witkin
+/// 1998's filter S = I − n̂n̂ᵀ; a zero normal leaves the vector alone).
+fn filter(normal: &[DVec3], v: &mut [DVec3]) {
+    for (v, n) in v.iter_mut().zip(normal) {
+        *v -= *n * n.dot(*v);
+    }
+}
+
+/// Preconditioned conjugate gradient on `system` from the warm start in `s.dv`. `filtered`:
+/// the points with a contact normal in `s.normal` keep the part of `s.dv` along it
+/// (Baraff & Witkin 1998's modified PCG: the residual and every search direction are
+/// filtered), and the warm start is kept as it is.
 fn iterate(
     config: &SolverConfig,
     system: &System<'_>,
     s: &mut Scratch,
     tolerance: f64,
     b_norm: f64,
+    filtered: bool,
 ) -> CgOutcome {
     // r = b − A·dv from the warm start; keep it only if it beats starting from zero.
     system.apply(&s.dv, &mut s.q);
     for i in 0..s.r.len() {
         s.r[i] = s.rhs[i] - s.q[i];
     }
-    let warm_start_helps = dot(&s.r, &s.r).sqrt() < b_norm;
-    if !warm_start_helps {
+    if filtered {
+        filter(&s.normal, &mut s.r);
+    } else if dot(&s.r, &s.r).sqrt() >= b_norm {
         s.reset_warm_start();
         s.r.copy_from_slice(&s.rhs);
     }
     let mut rz = precondition(&s.diag_inv, &s.r, &mut s.z);
+    if filtered {
+        filter(&s.normal, &mut s.z);
+    }
     s.p.copy_from_slice(&s.z);
     let mut iterations = 0;
     let mut converged = dot(&s.r, &s.r).sqrt() <= tolerance;
     while !converged && iterations < config.cg_max_iterations {
+        // p is filtered, so p·(S·A·p) = p·A·p.
         let pq = system.apply(&s.p, &mut s.q);
+        if filtered {
+            filter(&s.normal, &mut s.q);
+        }
         let descends = pq > 0.0;
         if !descends {
             break;
@@ -618,6 +835,9 @@ fn iterate(
             break;
         }
         let rz_new = precondition(&s.diag_inv, &s.r, &mut s.z);
+        if filtered {
+            filter(&s.normal, &mut s.z);
+        }
         let beta = rz_new / rz;
         rz = rz_new;
         for (p, z) in s.p.iter_mut().zip(&s.z) {
@@ -865,7 +1085,8 @@ mod tests {
                 assert!(back.abs_diff_eq(DMat3::IDENTITY, 1e-9), "{i}: {back}");
             }
             // The solve meets its tolerance on the written-out system.
-            let outcome = conjugate_gradient(&config, &springs, &mut s, gas_scale);
+            let mut contacts = Contacts::new(&[], &points, model);
+            let outcome = conjugate_gradient(&config, &springs, &mut s, gas_scale, &mut contacts);
             assert!(outcome.converged);
             let b_norm = dot(&s.rhs, &s.rhs).sqrt();
             // Rows of the fixed point 0 are zero on both sides.

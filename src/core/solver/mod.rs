@@ -402,9 +402,21 @@ impl Solver {
         self.external.set(i, f)
     }
 
-    /// Sets every external force to zero.
+    /// Sets every external force to zero and drops the contacts.
     pub fn clear_external_forces(&mut self) {
         self.external.clear();
+    }
+
+    /// Adds a contact for the steps to solve ([`contact::StepContact`]); it stays until
+    /// [`Solver::clear_external_forces`].
+    pub fn add_contact(&mut self, contact: contact::StepContact) -> Result<(), SolverError> {
+        self.external.add_contact(contact)
+    }
+
+    /// The impulse each contact gave its point in the last step (N·s), in the order they
+    /// were added.
+    pub fn contact_impulses(&self) -> &[Vec3] {
+        self.stepper.contact_impulses()
     }
 
     /// Adds an anchor spring (eq 5).

@@ -20,6 +20,7 @@ pub(crate) use hinges::HingeBlock;
 pub use hinges::{DEGENERATE_HEIGHT, HingeGeometry, HingeSpec, Hinges, angle_difference};
 pub use pressure::Pressure;
 
+use super::contact::StepContact;
 use super::springs::SpringLayout;
 use super::{Anchor, AnchorId, Plasticity, STATE_LIMIT, SolverError, SpringSpec};
 
@@ -546,12 +547,15 @@ impl Springs {
 }
 
 /// A force on each point from outside the surface (contacts, wind, a game's own systems),
-/// added after the surface's own forces. It stays until changed or cleared.
+/// added after the surface's own forces, and the contacts to solve within the step
+/// ([`StepContact`]). Both stay until changed or cleared.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct ExternalForces {
     pub(crate) f: Soa3,
     /// Whether any force may be non-zero (all zero skips the pass).
     pub(crate) any: bool,
+    /// Contacts the step solves with the springs.
+    pub(crate) contacts: Vec<StepContact>,
 }
 
 impl ExternalForces {
@@ -560,6 +564,7 @@ impl ExternalForces {
         Self {
             f: Soa3::zeros(points),
             any: false,
+            contacts: Vec::new(),
         }
     }
 
@@ -594,17 +599,55 @@ impl ExternalForces {
         self.set(i, self.f.get(i) + f)
     }
 
-    /// Sets every force to zero.
+    /// Adds a contact for the step to solve ([`StepContact`]): its normal is made unit
+    /// length; refused when its point is out of range or a number is not finite (or the
+    /// normal is zero, or the friction negative).
+    pub fn add_contact(&mut self, contact: StepContact) -> Result<(), SolverError> {
+        let point = contact.point as usize;
+        check_index(point, self.len())?;
+        let normal = contact.normal.normalize_or_zero();
+        if normal == Vec3::ZERO || !contact.normal.is_finite() {
+            return Err(SolverError::InvalidVector {
+                index: point,
+                what: "contact normal",
+            });
+        }
+        check_vector(point, contact.body_velocity, "contact body velocity")?;
+        if !(contact.min_speed.is_finite() && contact.min_speed.abs() <= STATE_LIMIT) {
+            return Err(SolverError::InvalidContact {
+                point,
+                what: "least normal speed",
+            });
+        }
+        if !non_negative(contact.friction) {
+            return Err(SolverError::InvalidContact {
+                point,
+                what: "friction",
+            });
+        }
+        self.contacts.push(StepContact { normal, ..contact });
+        Ok(())
+    }
+
+    /// The contacts the step will solve, in the order they were added.
+    pub fn contacts(&self) -> &[StepContact] {
+        &self.contacts
+    }
+
+    /// Sets every force to zero and drops the contacts.
     pub fn clear(&mut self) {
         if self.any {
             self.f.fill(Vec3::ZERO);
             self.any = false;
         }
+        self.contacts.clear();
     }
 
-    /// Whether every force is zero (cheap when none was set since the last clear).
+    /// Whether every force is zero and no contact is waiting (cheap when none was set
+    /// since the last clear).
     pub fn is_zero(&self) -> bool {
-        !self.any || (0..self.len()).all(|i| self.f.get(i) == Vec3::ZERO)
+        self.contacts.is_empty()
+            && (!self.any || (0..self.len()).all(|i| self.f.get(i) == Vec3::ZERO))
     }
 }
 

@@ -35,6 +35,15 @@ pub enum SolverError {
         /// Which quantity.
         what: &'static str,
     },
+    /// A contact for the step ([`StepContact`](super::contact::StepContact)) with a number
+    /// that is not finite or out of range.
+    #[error("contact on point {point}: {what} is not finite, or out of range")]
+    InvalidContact {
+        /// The point the contact is on.
+        point: usize,
+        /// Which of the contact's numbers.
+        what: &'static str,
+    },
     /// A mass is not positive and finite.
     #[error("point {index}: mass {mass} is not positive and finite")]
     InvalidMass {

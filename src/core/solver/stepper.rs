@@ -77,6 +77,8 @@ pub struct Stepper {
     diagnostics: Diagnostics,
     /// The rest bounding box's diagonal, the unit of the default runaway speed (∞: none).
     rest_diagonal: f32,
+    /// The impulse each contact handed to the last step gave its point (N·s).
+    pub(crate) contact_impulses: Vec<Vec3>,
 }
 
 impl Stepper {
@@ -440,6 +442,9 @@ impl Stepper {
             x.copy_from(&points.x);
             v.copy_from(&points.v);
         }
+        self.contact_impulses.clear();
+        self.contact_impulses
+            .resize(external.contacts.len(), Vec3::ZERO);
         let h = dt / substeps as f32;
         let speed = self.runaway_speed();
         let mut report = StepReport {
@@ -458,10 +463,12 @@ impl Stepper {
             self.add_external(external);
             insane = match integrator {
                 Integrator::ExplicitEuler => {
-                    self.integrate::<false>(points, model.masses, h, speed)
+                    let insane = self.integrate::<false>(points, model.masses, h, speed);
+                    self.project_contacts(points, model, external, h, insane)
                 }
                 Integrator::SymplecticEuler => {
-                    self.integrate::<true>(points, model.masses, h, speed)
+                    let insane = self.integrate::<true>(points, model.masses, h, speed);
+                    self.project_contacts(points, model, external, h, insane)
                 }
                 Integrator::ImplicitEuler => {
                     let cg = self.implicit_step(points, model, external, h);
@@ -496,6 +503,41 @@ impl Stepper {
             report.finite = true;
         }
         report
+    }
+
+    /// After an explicit step that left `insane` components: the contacts handed in move
+    /// their points ([`contact::step::project`](super::contact::step::project)); returns
+    /// `insane` again (a state the guard will restore is left alone).
+    fn project_contacts(
+        &mut self,
+        points: &mut PointState,
+        model: Model<'_>,
+        external: &ExternalForces,
+        h: f32,
+        insane: usize,
+    ) -> usize {
+        if insane == 0 && !external.contacts.is_empty() {
+            super::contact::step::project(
+                points,
+                model.masses,
+                &external.contacts,
+                h,
+                &mut self.contact_impulses,
+            );
+        }
+        insane
+    }
+
+    /// The impulse each contact handed to the last step ([`ExternalForces::add_contact`])
+    /// gave its point, N·s, in the order they were added (zero for one that did not touch,
+    /// or that another contact of its point stood in for).
+    pub fn contact_impulses(&self) -> &[Vec3] {
+        &self.contact_impulses
+    }
+
+    /// Forgets the last step's contact impulses (once a caller has read them).
+    pub fn clear_contact_impulses(&mut self) {
+        self.contact_impulses.clear();
     }
 
     /// One explicit step of length `h` from the forces in `fa` and `fb`: symplectic Euler

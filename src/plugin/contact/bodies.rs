@@ -8,8 +8,10 @@ use bevy::prelude::*;
 use bevy_rapier3d::prelude::RapierContextMut;
 use bevy_rapier3d::rapier::dynamics::{RigidBody, RigidBodyHandle};
 
+use super::ContactSolve;
 use crate::core::solver::contact::{
-    BodyState, ContactImpulse, ContactParams, Proximity, resolve, will_touch,
+    BodyState, ContactImpulse, ContactParams, Proximity, StepContact, resolve, step_contact,
+    will_touch,
 };
 
 /// Rapier's scene through one tick, and the state each body touched so far is left in.
@@ -34,14 +36,18 @@ pub(super) struct BodyContacts {
 
 impl RigidSide<'_> {
     /// Resolves the contacts of each body in turn and applies the opposite impulses to the
-    /// dynamic ones; returns the impulses on the surface, body after body.
-    /// `reweigh` sets the proximities' inverse masses once it is known which of them touch
-    /// (the points that touch one body together move together).
+    /// dynamic ones; returns the impulses on the surface, body after body. With
+    /// [`ContactSolve::InStep`], the contacts with bodies nothing moves go to `held` instead,
+    /// for the surface's step to solve. `reweigh` sets the proximities' inverse masses once
+    /// it is known which of them touch (the points that touch one body together move
+    /// together).
     pub(super) fn resolve(
         &mut self,
         by_body: Vec<BodyContacts>,
         params: &ContactParams,
+        solve: ContactSolve,
         reweigh: &mut dyn FnMut(&mut [Proximity], &[bool]),
+        held: &mut Vec<StepContact>,
     ) -> Vec<ContactImpulse> {
         let (gravity, dt) = (self.gravity, self.dt);
         let states = &mut self.bodies;
@@ -63,6 +69,15 @@ impl RigidSide<'_> {
             // A proximity measured from a bad state (a surface the guard had to stop) takes
             // no part: nothing non-finite reaches rapier.
             proximities.retain(|p| p.velocity.is_finite() && p.gap.is_finite());
+            let immovable = rigid.is_none_or(|b| !b.is_dynamic());
+            if immovable && solve == ContactSolve::InStep {
+                held.extend(
+                    proximities
+                        .iter()
+                        .filter_map(|p| step_contact(&state, p, dt, params)),
+                );
+                continue;
+            }
             let touching: Vec<bool> = proximities
                 .iter()
                 .map(|p| will_touch(&state, p, dt, params))

@@ -29,9 +29,12 @@
 //! 3. finds the points inside each remaining collider's bounds, measures each point's
 //!    sphere against the collider's exact shape (parry's point projection) and hands the
 //!    proximities to [`crate::core::solver::contact::resolve`];
-//! 4. adds each impulse over the tick to the point's [`SurfaceForces`] and applies the
-//!    opposite impulse to the dynamic body at the contact point, so rapier's step and the
-//!    surface's step both see it in this tick.
+//! 4. for a dynamic body, adds each impulse over the tick to the point's [`SurfaceForces`]
+//!    and applies the opposite impulse to the body at the contact point, so rapier's step
+//!    and the surface's step both see it in this tick; for a body nothing moves (a fixed
+//!    collider, a kinematic body), hands the contact to the surface's step instead
+//!    ([`ContactSolve::InStep`], the default), which solves it with the springs; a system
+//!    after the step adds what those contacts gave to the surface's report.
 //!
 //! The plugin keeps rapier's `TimestepMode::Fixed` step equal to the tick, so that
 //! both step the same time. A surface's [`SurfaceContacts`] reports what touched it.
@@ -94,6 +97,7 @@ impl Default for SurfaceContactPlugin {
 impl Plugin for SurfaceContactPlugin {
     fn build(&self, app: &mut App) {
         app.register_type::<SurfaceContact>()
+            .register_type::<ContactSolve>()
             .register_type::<SurfaceContacts>()
             .init_resource::<ContactDiagnostics>()
             .add_systems(
@@ -105,6 +109,9 @@ impl Plugin for SurfaceContactPlugin {
                         .after(super::simulate::accumulate_forces)
                         .after(PhysicsSet::SyncBackend)
                         .before(PhysicsSet::StepSimulation),
+                    system::record_step_contacts
+                        .after(PointSpringsSystems::Integrate)
+                        .before(PointSpringsSystems::Transfer),
                 ),
             );
     }
@@ -126,6 +133,26 @@ pub struct SurfaceContact {
     /// Radius of each simulation point's sphere, as a share of the mean rest length of its
     /// stretch springs.
     pub radius_scale: f32,
+    /// How contacts with bodies nothing moves (fixed colliders, kinematic bodies) reach the
+    /// surface's step. Contacts with dynamic bodies are always estimated.
+    pub solve: ContactSolve,
+}
+
+/// How a contact with a body that nothing moves (the ground, a wall, a kinematic paddle)
+/// reaches a surface's step.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Reflect)]
+#[reflect(Debug, Default, PartialEq)]
+pub enum ContactSolve {
+    /// Solved within the step, with the springs ([`StepContact`]): the point's velocity
+    /// along the normal is held to what the contact allows and its neighbours are solved
+    /// with it, so a pushed patch moves as far as the body and no further.
+    ///
+    /// [`StepContact`]: crate::core::solver::contact::StepContact
+    #[default]
+    InStep,
+    /// An impulse before the step, estimated from each point's step mass (the way of every
+    /// contact with a dynamic body): a patch pushed as a whole is over-pushed.
+    Estimated,
 }
 
 impl Default for SurfaceContact {
@@ -135,6 +162,7 @@ impl Default for SurfaceContact {
             friction: DEFAULT_FRICTION,
             depth_recovery: DEFAULT_DEPTH_RECOVERY,
             radius_scale: DEFAULT_RADIUS_SCALE,
+            solve: ContactSolve::default(),
         }
     }
 }

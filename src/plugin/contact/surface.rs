@@ -5,7 +5,7 @@
 use bevy::math::Affine3A;
 use bevy::prelude::*;
 
-use crate::core::solver::contact::{PointGrid, step_masses};
+use crate::core::solver::contact::{PointGrid, StepContact, step_masses};
 use crate::plugin::components::{SimulationPoints, SurfaceMasses, SurfaceSprings, SurfaceStepper};
 
 /// How a surface's coordinates map to the world for one tick.
@@ -14,6 +14,8 @@ pub(super) struct SurfaceFrame {
     place: Affine3A,
     /// World vectors into the surface's coordinates (forces and impulses).
     pub(super) to_local: Mat3,
+    /// The surface's coordinates into the world's (its linear part).
+    linear: Mat3,
     /// The surface's gravity over one tick, in world coordinates.
     gravity_dt: Vec3,
     /// How much the frame scales lengths (radii).
@@ -29,8 +31,24 @@ impl SurfaceFrame {
         Self {
             place,
             to_local: linear.inverse(),
+            linear,
             gravity_dt: linear * gravity * dt,
             scale,
+        }
+    }
+}
+
+impl SurfaceFrame {
+    /// A contact for the step, from world coordinates into the surface's: a velocity v
+    /// seen from the world is L·v, so n̂·(L·v) ≥ s reads (Lᵀn̂)·v ≥ s, normalised.
+    pub(super) fn contact_to_local(&self, c: &StepContact) -> StepContact {
+        let normal = self.linear.transpose() * c.normal;
+        let length = normal.length();
+        StepContact {
+            normal: normal / length,
+            min_speed: c.min_speed / length,
+            body_velocity: self.to_local * c.body_velocity,
+            ..*c
         }
     }
 }

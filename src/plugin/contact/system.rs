@@ -130,7 +130,7 @@ fn contact_surface(
                 error!("point-springs surface {entity}: contacts off: {e}");
             }
         } else {
-            let touched = touch(&surface, colliders, groups, rigid, &params);
+            let touched = touch(&surface, colliders, groups, rigid, &params, contact.solve);
             report.record(&touched, frame, rigid.dt, &mut forces);
         }
     }
@@ -169,5 +169,43 @@ impl SurfaceContacts {
         }
         self.touching = touched.impulses.len();
         self.total_impulse += self.impulse;
+        for c in &touched.held {
+            // In range by construction; one that is not is left out (and said in the log).
+            if let Err(e) = forces.add_contact(frame.contact_to_local(c)) {
+                warn!("point-springs: a contact left out: {e}");
+            }
+        }
+    }
+}
+
+/// After the step: the impulses of the contacts the step solved ([`ContactSolve::InStep`])
+/// added to each surface's report and to the tick's count, in world coordinates. The
+/// stepper's record is cleared once read, so a surface that did not step this tick (paused,
+/// asleep) adds nothing.
+///
+/// [`ContactSolve::InStep`]: super::ContactSolve::InStep
+pub(crate) fn record_step_contacts(
+    mut surfaces: Query<(&mut SurfaceStepper, &GlobalTransform, &mut SurfaceContacts)>,
+    mut diagnostics: ResMut<ContactDiagnostics>,
+) {
+    for (mut stepper, place, mut report) in &mut surfaces {
+        if stepper.contact_impulses().is_empty() {
+            continue;
+        }
+        let linear = Mat3::from(place.affine().matrix3);
+        let (mut impulse, mut touching) = (Vec3::ZERO, 0);
+        for j in stepper.contact_impulses() {
+            if *j != Vec3::ZERO {
+                impulse += linear * *j;
+                touching += 1;
+            }
+        }
+        stepper.bypass_change_detection().clear_contact_impulses();
+        if impulse.is_finite() {
+            report.impulse += impulse;
+            report.total_impulse += impulse;
+        }
+        report.touching += touching;
+        diagnostics.touching += touching;
     }
 }

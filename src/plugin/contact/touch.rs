@@ -9,8 +9,11 @@ use bevy_rapier3d::rapier::geometry::InteractionGroups;
 use bevy_rapier3d::rapier::math::Pose;
 use bevy_rapier3d::rapier::parry::shape::Shape;
 
-use crate::core::solver::contact::{ContactImpulse, ContactParams, Proximity, group_step_masses};
+use crate::core::solver::contact::{
+    ContactImpulse, ContactParams, Proximity, StepContact, group_step_masses,
+};
 
+use super::ContactSolve;
 use super::bodies::{BodyContacts, RigidSide};
 use super::colliders::{NearCollider, near_colliders};
 use super::surface::{SurfaceView, WorldPoint, WorldPoints};
@@ -24,6 +27,9 @@ pub(super) struct Touched {
     pub(super) near: usize,
     /// The impulse on each point that touched.
     pub(super) impulses: Vec<ContactImpulse>,
+    /// The contacts with bodies nothing moves, for the surface's step to solve
+    /// ([`ContactSolve::InStep`]), in world coordinates.
+    pub(super) held: Vec<StepContact>,
 }
 
 /// The contacts of one surface, of collision `groups`, with every collider near it.
@@ -33,6 +39,7 @@ pub(super) fn touch(
     groups: InteractionGroups,
     rigid: &mut RigidSide<'_>,
     params: &ContactParams,
+    solve: ContactSolve,
 ) -> Touched {
     let dt = rigid.dt;
     let (lo, hi) = surface.swept_bounds(dt);
@@ -40,6 +47,7 @@ pub(super) fn touch(
     let mut touched = Touched {
         near: near.len(),
         impulses: Vec::new(),
+        held: Vec::new(),
     };
     if near.is_empty() {
         return touched;
@@ -49,7 +57,7 @@ pub(super) fn touch(
     let mut reweigh = |proximities: &mut [Proximity], touching: &[bool]| {
         together(surface, proximities, touching, dt);
     };
-    touched.impulses = rigid.resolve(by_body, params, &mut reweigh);
+    touched.impulses = rigid.resolve(by_body, params, solve, &mut reweigh, &mut touched.held);
     touched
 }
 

@@ -28,6 +28,7 @@
 //! receives is exactly the momentum the body loses.
 
 mod grid;
+pub(crate) mod step;
 
 pub use grid::PointGrid;
 
@@ -157,6 +158,50 @@ pub struct Proximity {
     pub velocity: Vec3,
     /// The point's inverse mass (zero for a pinned point).
     pub inv_mass: f32,
+}
+
+/// A contact with a body that nothing moves (the ground, a wall, a kinematic paddle), handed
+/// to the step instead of as a force ([`ExternalForces::add_contact`]), in the surface's own
+/// coordinates: the step gives the point's velocity along `normal` at least `min_speed` at
+/// its end, by the least push along the normal that the springs, solved together with it,
+/// allow, and the point slides along the body with Coulomb friction. Unlike an impulse
+/// estimated before the step, this moves a pushed patch exactly as far as the body moves it
+/// (issue 35): the point's neighbours are solved with it, not guessed.
+///
+/// [`ExternalForces::add_contact`]: super::ExternalForces::add_contact
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StepContact {
+    /// The simulation point's index.
+    pub point: u32,
+    /// Unit contact normal, from the body towards the point.
+    pub normal: Vec3,
+    /// The least velocity along `normal` the point may have at the end of the step: the
+    /// body's own along it plus what the gap allows ([`step_contact`]).
+    pub min_speed: f32,
+    /// The body's velocity where it touches the point (friction acts against the point's
+    /// velocity relative to it).
+    pub body_velocity: Vec3,
+    /// Coulomb friction coefficient μ.
+    pub friction: f32,
+}
+
+/// The contact of `p` with the immovable `body` for the step to solve, in world coordinates
+/// like `p`: whether it touches is the step's to find, with the springs' forces solved
+/// (`None` only for a point index beyond `u32`).
+pub fn step_contact(
+    body: &BodyState,
+    p: &Proximity,
+    dt: f32,
+    params: &ContactParams,
+) -> Option<StepContact> {
+    let body_velocity = body.velocity_at(p.at);
+    Some(StepContact {
+        point: u32::try_from(p.point).ok()?,
+        normal: p.normal,
+        min_speed: body_velocity.dot(p.normal) + allowed_speed(p, dt, params),
+        body_velocity,
+        friction: params.friction,
+    })
 }
 
 /// The impulse one contact exchanged this tick.
