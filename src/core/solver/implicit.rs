@@ -157,11 +157,35 @@ pub(crate) struct Scratch {
     hinges: Vec<HingeBlock>,
     /// Each point's contact normal while a contact holds it in the solve (zero: free).
     normal: Vec<DVec3>,
+    /// Whether a contact held each point at the end of the last step (the next step's
+    /// first guess).
+    held: Vec<bool>,
 }
 
 impl Scratch {
     pub fn reset_warm_start(&mut self) {
         self.dv.iter_mut().for_each(|d| *d = DVec3::ZERO);
+        self.held.iter_mut().for_each(|h| *h = false);
+    }
+
+    /// The points a contact held at the end of the last step, ascending.
+    pub fn held(&self) -> Vec<u32> {
+        (0..self.held.len())
+            .filter(|&i| self.held[i])
+            .map(|i| i as u32)
+            .collect()
+    }
+
+    /// Replaces the points held at the end of the last step (a snapshot's; in range).
+    pub fn set_held(&mut self, held: &[u32]) {
+        self.held.fill(false);
+        for &i in held {
+            let i = i as usize;
+            if i >= self.held.len() {
+                self.held.resize(i + 1, false);
+            }
+            self.held[i] = true;
+        }
     }
 
     /// The last Δv, the next solve's start.
@@ -189,6 +213,7 @@ impl Scratch {
         self.own.resize(n, 0.0);
         self.normal.clear();
         self.normal.resize(n, DVec3::ZERO);
+        self.held.resize(n, false);
         self.diag.resize(n, Sym3::default());
         self.diag_inv.resize(n, Sym3::default());
         self.fixed.resize(n, false);
@@ -303,6 +328,7 @@ impl Stepper {
             &mut contacts,
         );
         let held = contacts.slide(&mut scratch, points, &mut self.contact_impulses);
+        contacts.remember(&mut scratch);
         if config.damping_model == DampingModel::Axial && !held {
             keep_momenta(&mut scratch, points, model, external, &config, h);
         }
@@ -582,9 +608,10 @@ impl<'a> Contacts<'a> {
         }
     }
 
-    /// The first guess of which contacts hold: those whose point, moved by the step's
-    /// right-hand side over its own part of the matrix (the explicit estimate, which
-    /// overshoots), would end below its least normal speed.
+    /// The first guess of which contacts hold: those whose point a contact held at the end
+    /// of the last step (a surface at rest keeps its contacts), and those whose point,
+    /// moved by the step's right-hand side over its own part of the matrix (the explicit
+    /// estimate), would end below its least normal speed.
     fn guess(&mut self, s: &Scratch, own: &[f64]) {
         for k in 0..self.kept.len() {
             let (i, n, min_speed) = self.get(k);
@@ -594,7 +621,20 @@ impl<'a> Contacts<'a> {
             } else {
                 DVec3::ZERO
             };
-            self.holds[k] = n.dot(self.v0[k] + estimate) < min_speed - step::SPEED_SLACK;
+            self.holds[k] =
+                s.held[i] || n.dot(self.v0[k] + estimate) < min_speed - step::SPEED_SLACK;
+        }
+    }
+
+    /// Remembers which points a contact held in the last solve, for the next step's guess.
+    fn remember(&self, s: &mut Scratch) {
+        if !self.is_empty() || s.held.iter().any(|&h| h) {
+            s.held.fill(false);
+            for k in 0..self.kept.len() {
+                if self.push[k] != 0.0 {
+                    s.held[self.get(k).0] = true;
+                }
+            }
         }
     }
 

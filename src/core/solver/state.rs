@@ -41,6 +41,11 @@ pub struct SolverState {
     pub diagnostics: Diagnostics,
     /// The implicit solve's warm start (empty before the first implicit step).
     pub warm_start: Vec<DVec3>,
+    /// The points a contact held at the end of the last implicit step, ascending (the next
+    /// step's first guess of which contacts hold). Contacts handed to a step are not kept:
+    /// the caller hands them in each step.
+    #[serde(default)]
+    pub held: Vec<u32>,
 }
 
 /// The parts of a solver a [`SolverState`] is taken from: a [`Solver`]'s, or the Bevy
@@ -122,7 +127,7 @@ impl SolverState {
             springs[i] = [s.rest_length, s.stiffness, s.damping];
         }
         let (anchor_slots, free_anchor_slots) = parts.anchors.slots();
-        let (diagnostics, warm_start) = parts.stepper.carried();
+        let (diagnostics, warm_start, held) = parts.stepper.carried();
         Self {
             positions: parts.points.positions(),
             velocities: parts.points.velocities(),
@@ -146,6 +151,7 @@ impl SolverState {
             pressure: parts.pressure.map(|p| (p.stiffness, p.rest_volume())),
             diagnostics,
             warm_start,
+            held,
         }
     }
 
@@ -195,6 +201,12 @@ impl SolverState {
                 ));
             }
         }
+        if let Some(&i) = state.held.iter().find(|&&i| i as usize >= n) {
+            return Err(SolverError::PointOutOfRange {
+                index: i as usize,
+                points: n,
+            });
+        }
         if !state.warm_start.iter().all(|d| d.is_finite()) {
             return Err(SolverError::InvalidConfig(
                 "the snapshot's warm start is not finite",
@@ -239,7 +251,7 @@ impl SolverState {
         *parts.external = external;
         parts
             .stepper
-            .set_carried(state.diagnostics, &state.warm_start);
+            .set_carried(state.diagnostics, &state.warm_start, &state.held);
         Ok(())
     }
 }

@@ -147,16 +147,27 @@ impl Stepper {
         &self.diagnostics
     }
 
-    /// What the stepper carries from one step to the next: its running totals and the
-    /// implicit solve's warm start (empty before the first implicit step).
-    pub(crate) fn carried(&self) -> (Diagnostics, Vec<glam::DVec3>) {
-        (self.diagnostics, self.implicit.warm_start().to_vec())
+    /// What the stepper carries from one step to the next: its running totals, the
+    /// implicit solve's warm start (empty before the first implicit step) and the points
+    /// contacts held at its end.
+    pub(crate) fn carried(&self) -> (Diagnostics, Vec<glam::DVec3>, Vec<u32>) {
+        (
+            self.diagnostics,
+            self.implicit.warm_start().to_vec(),
+            self.implicit.held(),
+        )
     }
 
     /// Restores what [`Self::carried`] gave.
-    pub(crate) fn set_carried(&mut self, diagnostics: Diagnostics, warm_start: &[glam::DVec3]) {
+    pub(crate) fn set_carried(
+        &mut self,
+        diagnostics: Diagnostics,
+        warm_start: &[glam::DVec3],
+        held: &[u32],
+    ) {
         self.diagnostics = diagnostics;
         self.implicit.set_warm_start(warm_start);
+        self.implicit.set_held(held);
         self.forces_ready = false;
     }
 

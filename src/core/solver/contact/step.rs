@@ -201,6 +201,31 @@ mod tests {
     }
 
     #[test]
+    fn the_contacts_held_carry_over_so_a_restored_solver_steps_bit_for_bit() {
+        let mut solver = sheet(Integrator::ImplicitEuler, true);
+        for _ in 0..10 {
+            on_the_ground(&mut solver);
+            solver.step(DT).unwrap();
+        }
+        let (diagnostics, warm_start, held) = solver.stepper.carried();
+        assert_eq!(held.len(), solver.len(), "every point rests on the ground");
+        // A stepper restored from what it carried steps as the original does.
+        let mut restored = solver.clone();
+        restored.stepper.implicit = Default::default();
+        restored
+            .stepper
+            .set_carried(diagnostics, &warm_start, &held);
+        assert_eq!(restored.stepper.carried().2, held);
+        for s in [&mut solver, &mut restored] {
+            on_the_ground(s);
+            s.step(DT).unwrap();
+        }
+        for i in 0..solver.len() {
+            assert_eq!(solver.velocity(i), restored.velocity(i));
+        }
+    }
+
+    #[test]
     fn friction_slows_a_slide_by_at_most_mu_times_the_push_and_never_reverses_it() {
         let n = DVec3::Y;
         // A slow slide is stopped.
