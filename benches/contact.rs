@@ -10,6 +10,9 @@
 //! (`App::update`: contacts, rapier, springs, transfer). Medians over ticks; compare the two
 //! columns of one run, not runs on different machines.
 //!
+//! Each scene runs twice: contacts solved in the surfaces' steps ([`ContactSolve::InStep`],
+//! the default) and estimated before them.
+//!
 //! `cargo bench --features rapier --bench contact`
 
 use std::path::Path;
@@ -42,9 +45,20 @@ fn main() {
         "| scene | simulation points | balls | colliders | points touching | contacts µs/tick | whole tick µs | contacts share |"
     );
     println!("|---|---|---|---|---|---|---|---|");
-    playground();
-    sheet(false);
-    sheet(true);
+    for solve in [ContactSolve::InStep, ContactSolve::Estimated] {
+        playground(solve);
+        sheet(false, solve);
+        sheet(true, solve);
+    }
+}
+
+/// How the surfaces' contacts reach their steps, and its name in the table.
+fn contact(solve: ContactSolve) -> (SurfaceContact, &'static str) {
+    let name = match solve {
+        ContactSolve::InStep => "in the step",
+        ContactSolve::Estimated => "estimated",
+    };
+    (SurfaceContact { solve, ..default() }, name)
 }
 
 fn ball(at: Vec3, radius: f32) -> impl Bundle {
@@ -109,7 +123,8 @@ fn median(times: &mut [Duration]) -> Duration {
     times[times.len() / 2]
 }
 
-fn playground() {
+fn playground(solve: ContactSolve) {
+    let (contact, name) = contact(solve);
     let mut app = create_app();
     let assets = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets");
     let sphere = read_cloud(&assets.join("sphere3203.ply"), None).unwrap();
@@ -142,6 +157,7 @@ fn playground() {
         DeformableSurface::cloud(sphere, sphere_config),
         Transform::from_translation(sphere_at),
         awake(),
+        contact,
     ));
     let hat = app
         .world_mut()
@@ -149,6 +165,7 @@ fn playground() {
             DeformableSurface::cloud(hat, hat_config),
             Transform::from_translation(hat_at),
             awake(),
+            contact,
         ))
         .id();
     app.world_mut().spawn((
@@ -165,7 +182,7 @@ fn playground() {
             app.world_mut().spawn(ball(at, 0.16));
         }
     }
-    measure(&mut app, "playground", 12);
+    measure(&mut app, &format!("playground, {name}"), 12);
 }
 
 /// Settings that never let a surface sleep: the bench times a whole awake tick against the
@@ -181,7 +198,8 @@ fn awake() -> SurfaceSettings {
     }
 }
 
-fn sheet(far: bool) {
+fn sheet(far: bool, solve: ContactSolve) {
+    let (contact, name) = contact(solve);
     let mut app = create_app();
     // 10 m square, 4·10^4 dense points, 10^4 simulation points (about 0.1 apart), lying
     // flat (the sheet's +z normal turned to +y), edges held.
@@ -200,6 +218,7 @@ fn sheet(far: bool) {
             DeformableSurface::cloud(shapes::square_sheet(10.0, 0.05), config),
             Transform::from_rotation(Quat::from_rotation_x(-std::f32::consts::FRAC_PI_2)),
             awake(),
+            contact,
         ))
         .id();
     settle(&mut app);
@@ -211,5 +230,6 @@ fn sheet(far: bool) {
             app.world_mut().spawn(ball(at + shift, SHEET_BALL_RADIUS));
         }
     }
-    measure(&mut app, if far { "sheet+far" } else { "sheet+50" }, 50);
+    let scene = if far { "sheet+far" } else { "sheet+50" };
+    measure(&mut app, &format!("{scene}, {name}"), 50);
 }

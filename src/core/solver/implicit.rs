@@ -24,7 +24,7 @@
 
 use glam::{DMat3, DVec3};
 
-use super::contact::{StepContact, step};
+use super::contact::{StepBody, StepContact, step};
 use super::parts::{ExternalForces, HingeBlock, PointState, Springs};
 use super::springs::COINCIDENT_DISTANCE;
 use super::stepper::{Model, Stepper};
@@ -160,31 +160,43 @@ pub(crate) struct Scratch {
     /// Whether a contact held each point at the end of the last step (the next step's
     /// first guess).
     held: Vec<bool>,
+    /// Whether each point had a contact in the last step, held or not.
+    touched: Vec<bool>,
+    /// How the surface's pushes changed with each moving body's velocity in the last step,
+    /// by the body's key ([`StepBody::key`]).
+    resisted: Vec<(u64, (DMat3, DMat3))>,
 }
 
 impl Scratch {
     pub fn reset_warm_start(&mut self) {
         self.dv.iter_mut().for_each(|d| *d = DVec3::ZERO);
         self.held.iter_mut().for_each(|h| *h = false);
+        self.touched.iter_mut().for_each(|h| *h = false);
     }
 
-    /// The points a contact held at the end of the last step, ascending.
-    pub fn held(&self) -> Vec<u32> {
-        (0..self.held.len())
-            .filter(|&i| self.held[i])
-            .map(|i| i as u32)
-            .collect()
+    /// The points a contact held at the end of the last step, and those that had a contact
+    /// then, held or not; each ascending.
+    pub fn held(&self) -> (Vec<u32>, Vec<u32>) {
+        let list = |flags: &[bool]| {
+            (0..flags.len())
+                .filter(|&i| flags[i])
+                .map(|i| i as u32)
+                .collect()
+        };
+        (list(&self.held), list(&self.touched))
     }
 
-    /// Replaces the points held at the end of the last step (a snapshot's; in range).
-    pub fn set_held(&mut self, held: &[u32]) {
-        self.held.fill(false);
-        for &i in held {
-            let i = i as usize;
-            if i >= self.held.len() {
-                self.held.resize(i + 1, false);
+    /// Replaces what [`Self::held`] gave (a snapshot's; in range).
+    pub fn set_held(&mut self, held: &[u32], touched: &[u32]) {
+        for (flags, set) in [(&mut self.held, held), (&mut self.touched, touched)] {
+            flags.fill(false);
+            for &i in set {
+                let i = i as usize;
+                if i >= flags.len() {
+                    flags.resize(i + 1, false);
+                }
+                flags[i] = true;
             }
-            self.held[i] = true;
         }
     }
 
@@ -214,6 +226,7 @@ impl Scratch {
         self.normal.clear();
         self.normal.resize(n, DVec3::ZERO);
         self.held.resize(n, false);
+        self.touched.resize(n, false);
         self.diag.resize(n, Sym3::default());
         self.diag_inv.resize(n, Sym3::default());
         self.fixed.resize(n, false);
@@ -319,7 +332,7 @@ impl Stepper {
             hinge_gradients: &self.hinge_gradients,
         };
         let gas_scale = assemble(&mut scratch, forces, points, model, &config, h);
-        let mut contacts = Contacts::new(&external.contacts, points, model);
+        let mut contacts = Contacts::new(external, points, model);
         let outcome = conjugate_gradient(
             &config,
             model.springs,
@@ -568,6 +581,13 @@ fn outer(a: DVec3, b: DVec3) -> DMat3 {
 /// would pull its point is let go; a point let go that passes its body is held again).
 const CONTACT_PASSES: u32 = 4;
 
+/// Most rounds of solving the moving bodies' velocities with the surface ([`StepBody`]).
+const BODY_ROUNDS: u32 = 3;
+
+/// A moving body whose velocity is within this (m/s, rad/s) of what the surface's pushes
+/// give it needs no further round.
+const BODY_SPEED_SLACK: f64 = 1e-3;
+
 /// The contacts of one implicit step ([`StepContact`]), one per point: while a contact holds
 /// its point, the point's velocity along the normal is prescribed (the least the contact
 /// allows) and the solve finds the rest, the point's neighbours moving with it; the push
@@ -586,10 +606,37 @@ struct Contacts<'a> {
     push: Vec<f64>,
     /// Each kept contact's point's velocity at the step's start.
     v0: Vec<DVec3>,
+    /// The bodies that move ([`StepBody`]).
+    bodies: &'a [StepBody],
+    /// Each body's velocity now, less its guess: linear, angular.
+    shift: Vec<(DVec3, DVec3)>,
+    /// Each body's estimate of how the surface's pushes change with its velocity (linear,
+    /// angular; see [`Contacts::move_bodies`]) and the last round's velocity and pushes.
+    secant: Vec<Option<Secant>>,
+}
+
+/// What one round of a moving body left for the next: how the pushes on the surface change
+/// with the body's velocity, as estimated so far, and the velocity and pushes of the round.
+#[derive(Debug, Clone, Copy)]
+struct Secant {
+    resist: (DMat3, DMat3),
+    shift: (DVec3, DVec3),
+    impulse: (DVec3, DVec3),
+}
+
+/// Broyden's update of `c` (how y changes with x) from a step `dx` that changed y by `dy`.
+fn broyden(c: DMat3, dx: DVec3, dy: DVec3) -> DMat3 {
+    let length = dx.length_squared();
+    if length > 0.0 && length.is_finite() {
+        c + outer(dy - c * dx, dx) / length
+    } else {
+        c
+    }
 }
 
 impl<'a> Contacts<'a> {
-    fn new(contacts: &'a [StepContact], points: &PointState, model: Model<'_>) -> Self {
+    fn new(external: &'a ExternalForces, points: &PointState, model: Model<'_>) -> Self {
+        let contacts = &external.contacts[..];
         let kept = if contacts.is_empty() {
             Vec::new()
         } else {
@@ -605,13 +652,17 @@ impl<'a> Contacts<'a> {
             push: vec![0.0; kept.len()],
             kept,
             v0,
+            bodies: &external.bodies,
+            shift: vec![(DVec3::ZERO, DVec3::ZERO); external.bodies.len()],
+            secant: vec![None; external.bodies.len()],
         }
     }
 
     /// The first guess of which contacts hold: those whose point a contact held at the end
-    /// of the last step (a surface at rest keeps its contacts), and those whose point,
-    /// moved by the step's right-hand side over its own part of the matrix (the explicit
-    /// estimate), would end below its least normal speed.
+    /// of the last step (a surface at rest keeps its contacts), none whose point had a
+    /// contact that did not hold, and, for points new to contact, those whose point, moved
+    /// by the step's right-hand side over its own part of the matrix (the explicit
+    /// estimate, which overshoots), would end below its least normal speed.
     fn guess(&mut self, s: &Scratch, own: &[f64]) {
         for k in 0..self.kept.len() {
             let (i, n, min_speed) = self.get(k);
@@ -621,19 +672,23 @@ impl<'a> Contacts<'a> {
             } else {
                 DVec3::ZERO
             };
-            self.holds[k] =
-                s.held[i] || n.dot(self.v0[k] + estimate) < min_speed - step::SPEED_SLACK;
+            self.holds[k] = if s.touched[i] {
+                s.held[i]
+            } else {
+                n.dot(self.v0[k] + estimate) < min_speed - step::SPEED_SLACK
+            };
         }
     }
 
     /// Remembers which points a contact held in the last solve, for the next step's guess.
     fn remember(&self, s: &mut Scratch) {
-        if !self.is_empty() || s.held.iter().any(|&h| h) {
+        if !self.is_empty() || s.touched.iter().any(|&h| h) {
             s.held.fill(false);
+            s.touched.fill(false);
             for k in 0..self.kept.len() {
-                if self.push[k] != 0.0 {
-                    s.held[self.get(k).0] = true;
-                }
+                let i = self.get(k).0;
+                s.touched[i] = true;
+                s.held[i] = self.push[k] != 0.0;
             }
         }
     }
@@ -645,11 +700,17 @@ impl<'a> Contacts<'a> {
     /// Kept contact `k`: its point, unit normal and the least normal speed.
     fn get(&self, k: usize) -> (usize, DVec3, f64) {
         let c = &self.contacts[self.kept[k]];
-        (
-            c.point as usize,
-            c.normal.as_dvec3(),
-            f64::from(c.min_speed),
-        )
+        let n = c.normal.as_dvec3();
+        let shift = self.body_shift(c);
+        (c.point as usize, n, f64::from(c.min_speed) + n.dot(shift))
+    }
+
+    /// How much faster contact `c`'s body now moves where it touches than at its guess.
+    fn body_shift(&self, c: &StepContact) -> DVec3 {
+        match c.body.and_then(|b| self.shift.get(b as usize)) {
+            Some((linear, angular)) => *linear + angular.cross(c.arm.as_dvec3()),
+            None => DVec3::ZERO,
+        }
     }
 
     /// The normal velocity change kept contact `k` asks of its point.
@@ -691,21 +752,123 @@ impl<'a> Contacts<'a> {
             iterations: 0,
             converged: true,
         };
-        for _ in 0..CONTACT_PASSES {
-            self.hold(s);
-            let pass = iterate(config, system, s, tolerance, scale, true);
-            outcome.iterations += pass.iterations;
-            outcome.converged = pass.converged;
-            if !s.dv.iter().all(|d| d.is_finite()) {
-                break;
+        for round in 0..BODY_ROUNDS {
+            for _ in 0..CONTACT_PASSES {
+                self.hold(s);
+                let pass = iterate(config, system, s, tolerance, scale, true);
+                outcome.iterations += pass.iterations;
+                outcome.converged = pass.converged;
+                if !s.dv.iter().all(|d| d.is_finite()) {
+                    s.normal.fill(DVec3::ZERO);
+                    return outcome;
+                }
+                system.apply(&s.dv, &mut s.q);
+                if !self.settle(s) {
+                    break;
+                }
             }
-            system.apply(&s.dv, &mut s.q);
-            if !self.settle(s) {
+            if round + 1 == BODY_ROUNDS || !self.move_bodies(s) {
                 break;
             }
         }
         s.normal.fill(DVec3::ZERO);
+        // Remember how the surface resisted each body, for its next step's first round.
+        let last = std::mem::take(&mut s.resisted);
+        for (body, secant) in self.bodies.iter().zip(&self.secant) {
+            let resist = secant
+                .map(|secant| secant.resist)
+                .or_else(|| last.iter().find(|(key, _)| *key == body.key).map(|r| r.1));
+            if let Some(resist) = resist {
+                s.resisted.push((body.key, resist));
+            }
+        }
         outcome
+    }
+
+    /// One quasi-Newton step of each moving body towards the velocity the surface's pushes
+    /// give it ([`StepBody`]); returns whether any moved. The pushes J on the surface change
+    /// with the body's velocity V as J(V) = J₀ + C·V while the same contacts hold (the step
+    /// is linear), and the body's own velocity is V = V₀ − W·J(V): the step solves
+    /// (I + W·C)·δ = −(V − V₀ + W·J). C starts as the held points' step masses along their
+    /// normals (more than the surface resists: the rounds fall short rather than overshoot)
+    /// and each later round corrects it by Broyden's update from the change it saw, which
+    /// along one direction of push is exact.
+    fn move_bodies(&mut self, s: &Scratch) -> bool {
+        if self.bodies.is_empty() {
+            return false;
+        }
+        let count = self.bodies.len();
+        // Per body: the pushes' linear and angular impulse, and the held points' masses
+        // along their normals, as linear and angular 3×3 sums.
+        let mut impulse = vec![(DVec3::ZERO, DVec3::ZERO); count];
+        let mut resist = vec![(DMat3::ZERO, DMat3::ZERO); count];
+        for k in 0..self.kept.len() {
+            let c = &self.contacts[self.kept[k]];
+            let Some(b) = c.body.map(|b| b as usize).filter(|&b| b < count) else {
+                continue;
+            };
+            if self.push[k] == 0.0 {
+                continue;
+            }
+            let (i, n, _) = self.get(k);
+            let arm = c.arm.as_dvec3();
+            let j = n * self.push[k];
+            impulse[b].0 += j;
+            impulse[b].1 += arm.cross(j);
+            let d = &s.diag[i];
+            let mass = n.dot(d.mul(n));
+            let turn = arm.cross(n);
+            resist[b].0 += outer(n, n) * mass;
+            resist[b].1 += outer(turn, turn) * mass;
+        }
+        let mut moved = false;
+        for b in 0..count {
+            let body = &self.bodies[b];
+            let (inv_mass, inv_inertia) = (body.inv_mass.as_dmat3(), body.inv_inertia.as_dmat3());
+            // The body takes the opposite of what the surface took.
+            let linear = body.linear.as_dvec3() - inv_mass * impulse[b].0;
+            let angular = body.angular.as_dvec3() - inv_inertia * impulse[b].1;
+            let (shift_linear, shift_angular) = self.shift[b];
+            let miss_linear = body.guess_linear.as_dvec3() + shift_linear - linear;
+            let miss_angular = body.guess_angular.as_dvec3() + shift_angular - angular;
+            if miss_linear.length() < BODY_SPEED_SLACK && miss_angular.length() < BODY_SPEED_SLACK {
+                continue;
+            }
+            // C = dJ/dV, from the last round's change where there was one.
+            let resist = match self.secant[b] {
+                // The body's resistance found last step, where it has one.
+                None => s
+                    .resisted
+                    .iter()
+                    .find(|(key, _)| *key == body.key)
+                    .map_or(resist[b], |(_, r)| *r),
+                Some(last) => (
+                    broyden(
+                        last.resist.0,
+                        shift_linear - last.shift.0,
+                        impulse[b].0 - last.impulse.0,
+                    ),
+                    broyden(
+                        last.resist.1,
+                        shift_angular - last.shift.1,
+                        impulse[b].1 - last.impulse.1,
+                    ),
+                ),
+            };
+            self.secant[b] = Some(Secant {
+                resist,
+                shift: self.shift[b],
+                impulse: impulse[b],
+            });
+            let step_linear = -((DMat3::IDENTITY + inv_mass * resist.0).inverse() * miss_linear);
+            let step_angular =
+                -((DMat3::IDENTITY + inv_inertia * resist.1).inverse() * miss_angular);
+            if step_linear.is_finite() && step_angular.is_finite() {
+                self.shift[b] = (shift_linear + step_linear, shift_angular + step_angular);
+                moved = true;
+            }
+        }
+        moved
     }
 
     /// Reads each held contact's push from `s.q` = A·Δv and lets go of those that pull;
@@ -745,7 +908,8 @@ impl<'a> Contacts<'a> {
             let c = &self.contacts[self.kept[k]];
             let (i, n, _) = self.get(k);
             let mass = s.own[i];
-            let relative = points.v.get(i).as_dvec3() + s.dv[i] - c.body_velocity.as_dvec3();
+            let body_velocity = c.body_velocity.as_dvec3() + self.body_shift(c);
+            let relative = points.v.get(i).as_dvec3() + s.dv[i] - body_velocity;
             let slide = step::friction_dv(relative, n, f64::from(c.friction), push / mass);
             s.dv[i] += slide;
             if let Some(out) = impulses.get_mut(self.kept[k]) {
@@ -1125,7 +1289,8 @@ mod tests {
                 assert!(back.abs_diff_eq(DMat3::IDENTITY, 1e-9), "{i}: {back}");
             }
             // The solve meets its tolerance on the written-out system.
-            let mut contacts = Contacts::new(&[], &points, model);
+            let none = ExternalForces::zeros(points.len());
+            let mut contacts = Contacts::new(&none, &points, model);
             let outcome = conjugate_gradient(&config, &springs, &mut s, gas_scale, &mut contacts);
             assert!(outcome.converged);
             let b_norm = dot(&s.rhs, &s.rhs).sqrt();

@@ -20,7 +20,7 @@ pub(crate) use hinges::HingeBlock;
 pub use hinges::{DEGENERATE_HEIGHT, HingeGeometry, HingeSpec, Hinges, angle_difference};
 pub use pressure::Pressure;
 
-use super::contact::StepContact;
+use super::contact::{StepBody, StepContact};
 use super::springs::SpringLayout;
 use super::{Anchor, AnchorId, Plasticity, STATE_LIMIT, SolverError, SpringSpec};
 
@@ -556,6 +556,8 @@ pub struct ExternalForces {
     pub(crate) any: bool,
     /// Contacts the step solves with the springs.
     pub(crate) contacts: Vec<StepContact>,
+    /// The bodies the contacts' `body` indices name.
+    pub(crate) bodies: Vec<StepBody>,
 }
 
 impl ExternalForces {
@@ -565,6 +567,7 @@ impl ExternalForces {
             f: Soa3::zeros(points),
             any: false,
             contacts: Vec::new(),
+            bodies: Vec::new(),
         }
     }
 
@@ -613,6 +616,16 @@ impl ExternalForces {
             });
         }
         check_vector(point, contact.body_velocity, "contact body velocity")?;
+        check_vector(point, contact.arm, "contact arm")?;
+        if contact
+            .body
+            .is_some_and(|b| b as usize >= self.bodies.len())
+        {
+            return Err(SolverError::InvalidContact {
+                point,
+                what: "body index",
+            });
+        }
         if !(contact.min_speed.is_finite() && contact.min_speed.abs() <= STATE_LIMIT) {
             return Err(SolverError::InvalidContact {
                 point,
@@ -634,13 +647,36 @@ impl ExternalForces {
         &self.contacts
     }
 
-    /// Sets every force to zero and drops the contacts.
+    /// Adds a body the step solves with the surface ([`StepBody`]); returns its index for
+    /// the contacts' `body`. Refused when a number is not finite.
+    pub fn add_body(&mut self, body: StepBody) -> Result<u32, SolverError> {
+        let index = u32::try_from(self.bodies.len()).map_err(|_| SolverError::InvalidContact {
+            point: 0,
+            what: "body count",
+        })?;
+        if !body.is_finite() {
+            return Err(SolverError::InvalidContact {
+                point: 0,
+                what: "body",
+            });
+        }
+        self.bodies.push(body);
+        Ok(index)
+    }
+
+    /// The bodies the step will solve with the surface, in the order they were added.
+    pub fn bodies(&self) -> &[StepBody] {
+        &self.bodies
+    }
+
+    /// Sets every force to zero and drops the contacts and their bodies.
     pub fn clear(&mut self) {
         if self.any {
             self.f.fill(Vec3::ZERO);
             self.any = false;
         }
         self.contacts.clear();
+        self.bodies.clear();
     }
 
     /// Whether every force is zero and no contact is waiting (cheap when none was set

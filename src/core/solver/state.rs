@@ -46,6 +46,9 @@ pub struct SolverState {
     /// the caller hands them in each step.
     #[serde(default)]
     pub held: Vec<u32>,
+    /// The points that had a contact in the last implicit step, held or not, ascending.
+    #[serde(default)]
+    pub touched: Vec<u32>,
 }
 
 /// The parts of a solver a [`SolverState`] is taken from: a [`Solver`]'s, or the Bevy
@@ -127,7 +130,7 @@ impl SolverState {
             springs[i] = [s.rest_length, s.stiffness, s.damping];
         }
         let (anchor_slots, free_anchor_slots) = parts.anchors.slots();
-        let (diagnostics, warm_start, held) = parts.stepper.carried();
+        let (diagnostics, warm_start, (held, touched)) = parts.stepper.carried();
         Self {
             positions: parts.points.positions(),
             velocities: parts.points.velocities(),
@@ -152,6 +155,7 @@ impl SolverState {
             diagnostics,
             warm_start,
             held,
+            touched,
         }
     }
 
@@ -201,7 +205,12 @@ impl SolverState {
                 ));
             }
         }
-        if let Some(&i) = state.held.iter().find(|&&i| i as usize >= n) {
+        if let Some(&i) = state
+            .held
+            .iter()
+            .chain(&state.touched)
+            .find(|&&i| i as usize >= n)
+        {
             return Err(SolverError::PointOutOfRange {
                 index: i as usize,
                 points: n,
@@ -249,9 +258,11 @@ impl SolverState {
         *parts.springs = springs;
         *parts.anchors = anchors;
         *parts.external = external;
-        parts
-            .stepper
-            .set_carried(state.diagnostics, &state.warm_start, &state.held);
+        parts.stepper.set_carried(
+            state.diagnostics,
+            &state.warm_start,
+            (&state.held, &state.touched),
+        );
         Ok(())
     }
 }

@@ -149,8 +149,8 @@ impl Stepper {
 
     /// What the stepper carries from one step to the next: its running totals, the
     /// implicit solve's warm start (empty before the first implicit step) and the points
-    /// contacts held at its end.
-    pub(crate) fn carried(&self) -> (Diagnostics, Vec<glam::DVec3>, Vec<u32>) {
+    /// contacts held at its end and had contacts then.
+    pub(crate) fn carried(&self) -> (Diagnostics, Vec<glam::DVec3>, (Vec<u32>, Vec<u32>)) {
         (
             self.diagnostics,
             self.implicit.warm_start().to_vec(),
@@ -163,11 +163,11 @@ impl Stepper {
         &mut self,
         diagnostics: Diagnostics,
         warm_start: &[glam::DVec3],
-        held: &[u32],
+        (held, touched): (&[u32], &[u32]),
     ) {
         self.diagnostics = diagnostics;
         self.implicit.set_warm_start(warm_start);
-        self.implicit.set_held(held);
+        self.implicit.set_held(held, touched);
         self.forces_ready = false;
     }
 
@@ -510,6 +510,8 @@ impl Stepper {
                 points.v.copy_from(v);
             }
             self.implicit.reset_warm_start();
+            // The step did not happen: neither did its contacts.
+            self.contact_impulses.fill(Vec3::ZERO);
             report.recovered = true;
             report.finite = true;
         }

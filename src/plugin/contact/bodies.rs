@@ -37,17 +37,19 @@ pub(super) struct BodyContacts {
 impl RigidSide<'_> {
     /// Resolves the contacts of each body in turn and applies the opposite impulses to the
     /// dynamic ones; returns the impulses on the surface, body after body. With
-    /// [`ContactSolve::InStep`], the contacts with bodies nothing moves go to `held` instead,
-    /// for the surface's step to solve. `reweigh` sets the proximities' inverse masses once
-    /// it is known which of them touch (the points that touch one body together move
-    /// together).
+    /// [`ContactSolve::InStep`], the contacts go to `held` instead, for the surface's step
+    /// to solve: those with bodies nothing moves, and those with dynamic bodies too when
+    /// `dynamic_in_step` (the body's estimated state after the contacts is its guess, and
+    /// what it takes is applied after the step). `reweigh` sets the proximities' inverse
+    /// masses once it is known which of them touch (the points that touch one body together
+    /// move together).
     pub(super) fn resolve(
         &mut self,
         by_body: Vec<BodyContacts>,
         params: &ContactParams,
-        solve: ContactSolve,
+        (solve, dynamic_in_step): (ContactSolve, bool),
         reweigh: &mut dyn FnMut(&mut [Proximity], &[bool]),
-        held: &mut Vec<StepContact>,
+        held: &mut Held,
     ) -> Vec<ContactImpulse> {
         let (gravity, dt) = (self.gravity, self.dt);
         let states = &mut self.bodies;
@@ -71,13 +73,15 @@ impl RigidSide<'_> {
             proximities.retain(|p| p.velocity.is_finite() && p.gap.is_finite());
             let immovable = rigid.is_none_or(|b| !b.is_dynamic());
             if immovable && solve == ContactSolve::InStep {
-                held.extend(
-                    proximities
-                        .iter()
-                        .filter_map(|p| step_contact(&state, p, dt, params)),
-                );
+                for p in &proximities {
+                    if let Some(c) = step_contact(&state, p, dt, params, None) {
+                        held.contacts.push(c);
+                        held.at.push(p.at);
+                    }
+                }
                 continue;
             }
+            let moving_in_step = !immovable && solve == ContactSolve::InStep && dynamic_in_step;
             let touching: Vec<bool> = proximities
                 .iter()
                 .map(|p| will_touch(&state, p, dt, params))
@@ -85,10 +89,30 @@ impl RigidSide<'_> {
             if touching.iter().filter(|t| **t).count() > 1 {
                 reweigh(&mut proximities, &touching);
             }
+            let predicted = state;
             let Ok(impulses) = resolve(&mut state, &mut proximities, dt, params) else {
                 continue;
             };
             if impulses.iter().any(|c| !c.impulse.is_finite()) {
+                continue;
+            }
+            if let (true, Some(h)) = (moving_in_step, handle) {
+                // The estimate is the guess; the step solves the rest.
+                let index = held.bodies.len() as u32;
+                held.bodies.push((h, predicted, state));
+                for p in &proximities {
+                    if let Some(c) = step_contact(&predicted, p, dt, params, Some(index)) {
+                        // At the guess: the body's velocity after the estimate.
+                        let at_guess = state.velocity_at(p.at);
+                        held.contacts.push(StepContact {
+                            min_speed: c.min_speed + (at_guess - c.body_velocity).dot(p.normal),
+                            body_velocity: at_guess,
+                            ..c
+                        });
+                        held.at.push(p.at);
+                    }
+                }
+                states.insert(h, state);
                 continue;
             }
             if let (Some(h), Some(rigid)) = (handle, handle.and_then(|h| rigid_bodies.get_mut(h))) {
@@ -103,6 +127,19 @@ impl RigidSide<'_> {
         }
         all
     }
+}
+
+/// The contacts one surface hands to its step ([`ContactSolve::InStep`]), in world
+/// coordinates.
+#[derive(Default)]
+pub(super) struct Held {
+    /// The contacts.
+    pub(super) contacts: Vec<StepContact>,
+    /// Where each contact touches its body.
+    pub(super) at: Vec<Vec3>,
+    /// The dynamic bodies the contacts' `body` indices name: each one's handle, its state
+    /// without the contacts and its state after the estimated ones (the guess).
+    pub(super) bodies: Vec<(RigidBodyHandle, BodyState, BodyState)>,
 }
 
 /// A rapier body as contacts see it: its velocity at the end of the tick without contacts

@@ -29,12 +29,14 @@
 //! 3. finds the points inside each remaining collider's bounds, measures each point's
 //!    sphere against the collider's exact shape (parry's point projection) and hands the
 //!    proximities to [`crate::core::solver::contact::resolve`];
-//! 4. for a dynamic body, adds each impulse over the tick to the point's [`SurfaceForces`]
-//!    and applies the opposite impulse to the body at the contact point, so rapier's step
-//!    and the surface's step both see it in this tick; for a body nothing moves (a fixed
-//!    collider, a kinematic body), hands the contact to the surface's step instead
-//!    ([`ContactSolve::InStep`], the default), which solves it with the springs; a system
-//!    after the step adds what those contacts gave to the surface's report.
+//! 4. hands the contacts to the surface's step ([`ContactSolve::InStep`], the default),
+//!    which solves them with the springs (a dynamic body's velocity with the surface's,
+//!    from the estimate of step 3 as a first guess); a system after the step, before
+//!    rapier's, applies to each dynamic body the opposite of what the surface took, at the
+//!    contact points, and adds it to the surface's report. With
+//!    [`ContactSolve::Estimated`] (and for dynamic bodies with an explicit integrator), the
+//!    estimated impulses go into the points' [`SurfaceForces`] instead and their opposites
+//!    to the bodies, so rapier's step and the surface's step both see them in this tick.
 //!
 //! The plugin keeps rapier's `TimestepMode::Fixed` step equal to the tick, so that
 //! both step the same time. A surface's [`SurfaceContacts`] reports what touched it.
@@ -60,6 +62,7 @@ use bevy::ecs::schedule::{InternedScheduleLabel, ScheduleLabel};
 use bevy::prelude::*;
 use bevy_rapier3d::plugin::PhysicsSet;
 use bevy_rapier3d::prelude::TimestepMode;
+use bevy_rapier3d::rapier::dynamics::RigidBodyHandle;
 
 use crate::core::network::SpringNetwork;
 use crate::core::solver::contact::{
@@ -111,7 +114,8 @@ impl Plugin for SurfaceContactPlugin {
                         .before(PhysicsSet::StepSimulation),
                     system::record_step_contacts
                         .after(PointSpringsSystems::Integrate)
-                        .before(PointSpringsSystems::Transfer),
+                        .before(PointSpringsSystems::Transfer)
+                        .before(PhysicsSet::StepSimulation),
                 ),
             );
     }
@@ -133,25 +137,26 @@ pub struct SurfaceContact {
     /// Radius of each simulation point's sphere, as a share of the mean rest length of its
     /// stretch springs.
     pub radius_scale: f32,
-    /// How contacts with bodies nothing moves (fixed colliders, kinematic bodies) reach the
-    /// surface's step. Contacts with dynamic bodies are always estimated.
+    /// How contacts reach the surface's step.
     pub solve: ContactSolve,
 }
 
-/// How a contact with a body that nothing moves (the ground, a wall, a kinematic paddle)
-/// reaches a surface's step.
+/// How a contact reaches a surface's step.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Reflect)]
 #[reflect(Debug, Default, PartialEq)]
 pub enum ContactSolve {
     /// Solved within the step, with the springs ([`StepContact`]): the point's velocity
     /// along the normal is held to what the contact allows and its neighbours are solved
-    /// with it, so a pushed patch moves as far as the body and no further.
+    /// with it, so a pushed patch moves as far as the body and no further; a dynamic body's
+    /// velocity is solved with the surface's ([`StepBody`]) where the surface steps by
+    /// implicit Euler in a frame without shear, and estimated otherwise.
     ///
     /// [`StepContact`]: crate::core::solver::contact::StepContact
+    /// [`StepBody`]: crate::core::solver::contact::StepBody
     #[default]
     InStep,
-    /// An impulse before the step, estimated from each point's step mass (the way of every
-    /// contact with a dynamic body): a patch pushed as a whole is over-pushed.
+    /// An impulse before the step, estimated from each point's step mass: a patch pushed as
+    /// a whole is pushed too far or too little, and a ball resting on a surface jitters.
     Estimated,
 }
 
@@ -196,6 +201,13 @@ pub struct SurfaceContacts {
     /// The network and scale the radii were computed for.
     #[reflect(ignore)]
     radii_of: Option<(Arc<SpringNetwork>, u32)>,
+    /// For each contact handed to the step this tick: its dynamic body, if it has one, and
+    /// where it touches it (world coordinates).
+    #[reflect(ignore)]
+    links: Vec<(Option<RigidBodyHandle>, Vec3)>,
+    /// The index of the first of them among the step's contacts.
+    #[reflect(ignore)]
+    links_from: usize,
 }
 
 impl SurfaceContacts {

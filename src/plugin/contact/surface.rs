@@ -5,7 +5,7 @@
 use bevy::math::Affine3A;
 use bevy::prelude::*;
 
-use crate::core::solver::contact::{PointGrid, StepContact, step_masses};
+use crate::core::solver::contact::{BodyState, PointGrid, StepBody, StepContact, step_masses};
 use crate::plugin::components::{SimulationPoints, SurfaceMasses, SurfaceSprings, SurfaceStepper};
 
 /// How a surface's coordinates map to the world for one tick.
@@ -38,6 +38,10 @@ impl SurfaceFrame {
     }
 }
 
+/// How far from a turn and a uniform scale a frame may be and still count as one (a share
+/// of the scale squared).
+const SIMILARITY_TOLERANCE: f32 = 1e-4;
+
 impl SurfaceFrame {
     /// A contact for the step, from world coordinates into the surface's: a velocity v
     /// seen from the world is L·v, so n̂·(L·v) ≥ s reads (Lᵀn̂)·v ≥ s, normalised.
@@ -48,7 +52,44 @@ impl SurfaceFrame {
             normal: normal / length,
             min_speed: c.min_speed / length,
             body_velocity: self.to_local * c.body_velocity,
+            arm: self.to_local * c.arm,
             ..*c
+        }
+    }
+
+    /// Whether the frame is a turn and a uniform scale s (L = s·R, no mirror): then a body's
+    /// turning is a turning in the surface's coordinates too.
+    pub(super) fn is_similarity(&self) -> bool {
+        let s2 = self.scale * self.scale;
+        let gram = self.linear.transpose() * self.linear - Mat3::from_diagonal(Vec3::splat(s2));
+        self.linear.determinant() > 0.0
+            && gram
+                .to_cols_array()
+                .iter()
+                .all(|e| e.abs() <= SIMILARITY_TOLERANCE * s2)
+    }
+
+    /// A dynamic body for the step, in the surface's coordinates (the frame a similarity
+    /// L = s·R): velocities v ↦ L⁻¹v, turning ω ↦ Rᵀω, inverse mass Rᵀ·W·R and inverse
+    /// inertia s²·Rᵀ·I⁻¹·R, so that an impulse J on the surface (L·J in the world) moves the
+    /// body in its coordinates as it moves in the world's.
+    pub(super) fn body_to_local(
+        &self,
+        predicted: &BodyState,
+        guess: &BodyState,
+        key: u64,
+    ) -> StepBody {
+        let s2 = self.scale * self.scale;
+        let turn_back = self.linear.transpose() / self.scale;
+        let lt = self.linear.transpose();
+        StepBody {
+            linear: self.to_local * predicted.linear,
+            angular: turn_back * predicted.angular,
+            guess_linear: self.to_local * guess.linear,
+            guess_angular: turn_back * guess.angular,
+            inv_mass: lt * Mat3::from_diagonal(predicted.inv_mass) * self.linear / s2,
+            inv_inertia: lt * predicted.inv_inertia * self.linear,
+            key,
         }
     }
 }

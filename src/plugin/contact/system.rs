@@ -16,6 +16,7 @@ use super::surface::{SurfaceFrame, SurfaceView};
 use super::touch::{Touched, touch};
 use super::{ContactDiagnostics, SurfaceContact, SurfaceContacts};
 use crate::core::network::SpringNetwork;
+use crate::core::solver::contact::StepContact;
 use crate::plugin::components::{
     SimulationPoints, StepOnce, SurfaceForces, SurfaceMasses, SurfaceNetwork, SurfaceSettings,
     SurfaceSprings, SurfaceStatus, SurfaceStepper,
@@ -145,6 +146,7 @@ impl SurfaceContacts {
     /// Starts a tick: the radii brought up to date, the last tick's counts cleared.
     fn start_tick(&mut self, network: &std::sync::Arc<SpringNetwork>, radius_scale: f32) {
         self.refresh_radii(network, radius_scale);
+        self.links.clear();
         self.colliders_near = 0;
         self.touching = 0;
         self.impulse = Vec3::ZERO;
@@ -169,10 +171,38 @@ impl SurfaceContacts {
         }
         self.touching = touched.impulses.len();
         self.total_impulse += self.impulse;
-        for c in &touched.held {
+        self.links.clear();
+        // The game's systems may hand contacts of their own to the step too.
+        self.links_from = forces.contacts().len();
+        let held = &touched.held;
+        let bodies: Vec<Option<u32>> = held
+            .bodies
+            .iter()
+            .map(|(handle, predicted, guess)| {
+                let (index, generation) = handle.into_raw_parts();
+                let key = (u64::from(index) << 32) | u64::from(generation);
+                forces
+                    .add_body(frame.body_to_local(predicted, guess, key))
+                    .inspect_err(|e| warn!("point-springs: a body left out of the step: {e}"))
+                    .ok()
+            })
+            .collect();
+        for (c, at) in held.contacts.iter().zip(&held.at) {
+            let (body, link) = match c.body {
+                None => (None, None),
+                Some(b) => match bodies.get(b as usize).copied().flatten() {
+                    Some(index) => (Some(index), Some(held.bodies[b as usize].0)),
+                    None => continue,
+                },
+            };
+            let local = StepContact {
+                body,
+                ..frame.contact_to_local(c)
+            };
             // In range by construction; one that is not is left out (and said in the log).
-            if let Err(e) = forces.add_contact(frame.contact_to_local(c)) {
-                warn!("point-springs: a contact left out: {e}");
+            match forces.add_contact(local) {
+                Ok(()) => self.links.push((link, *at)),
+                Err(e) => warn!("point-springs: a contact left out: {e}"),
             }
         }
     }
@@ -186,18 +216,32 @@ impl SurfaceContacts {
 /// [`ContactSolve::InStep`]: super::ContactSolve::InStep
 pub(crate) fn record_step_contacts(
     mut surfaces: Query<(&mut SurfaceStepper, &GlobalTransform, &mut SurfaceContacts)>,
+    mut rapier: WriteRapierContext,
     mut diagnostics: ResMut<ContactDiagnostics>,
 ) {
+    let mut context = rapier.single_mut().ok();
     for (mut stepper, place, mut report) in &mut surfaces {
         if stepper.contact_impulses().is_empty() {
             continue;
         }
         let linear = Mat3::from(place.affine().matrix3);
         let (mut impulse, mut touching) = (Vec3::ZERO, 0);
-        for j in stepper.contact_impulses() {
-            if *j != Vec3::ZERO {
-                impulse += linear * *j;
-                touching += 1;
+        for (k, j) in stepper.contact_impulses().iter().enumerate() {
+            if *j == Vec3::ZERO {
+                continue;
+            }
+            let world = linear * *j;
+            impulse += world;
+            touching += 1;
+            // A dynamic body solved in the step takes the opposite of what the surface took.
+            let link = k
+                .checked_sub(report.links_from)
+                .and_then(|k| report.links.get(k).copied());
+            if let (Some((Some(handle), at)), Some(context)) = (link, context.as_mut())
+                && world.is_finite()
+                && let Some(body) = context.rigidbody_set.bodies.get_mut(handle)
+            {
+                body.apply_impulse_at_point(-world, at, true);
             }
         }
         stepper.bypass_change_detection().clear_contact_impulses();

@@ -9,12 +9,11 @@ use bevy_rapier3d::rapier::geometry::InteractionGroups;
 use bevy_rapier3d::rapier::math::Pose;
 use bevy_rapier3d::rapier::parry::shape::Shape;
 
-use crate::core::solver::contact::{
-    ContactImpulse, ContactParams, Proximity, StepContact, group_step_masses,
-};
+use crate::core::solver::Integrator;
+use crate::core::solver::contact::{ContactImpulse, ContactParams, Proximity, group_step_masses};
 
 use super::ContactSolve;
-use super::bodies::{BodyContacts, RigidSide};
+use super::bodies::{BodyContacts, Held, RigidSide};
 use super::colliders::{NearCollider, near_colliders};
 use super::surface::{SurfaceView, WorldPoint, WorldPoints};
 
@@ -27,9 +26,9 @@ pub(super) struct Touched {
     pub(super) near: usize,
     /// The impulse on each point that touched.
     pub(super) impulses: Vec<ContactImpulse>,
-    /// The contacts with bodies nothing moves, for the surface's step to solve
-    /// ([`ContactSolve::InStep`]), in world coordinates.
-    pub(super) held: Vec<StepContact>,
+    /// The contacts for the surface's step to solve ([`ContactSolve::InStep`]), in world
+    /// coordinates.
+    pub(super) held: Held,
 }
 
 /// The contacts of one surface, of collision `groups`, with every collider near it.
@@ -47,7 +46,7 @@ pub(super) fn touch(
     let mut touched = Touched {
         near: near.len(),
         impulses: Vec::new(),
-        held: Vec::new(),
+        held: Held::default(),
     };
     if near.is_empty() {
         return touched;
@@ -57,7 +56,22 @@ pub(super) fn touch(
     let mut reweigh = |proximities: &mut [Proximity], touching: &[bool]| {
         together(surface, proximities, touching, dt);
     };
-    touched.impulses = rigid.resolve(by_body, params, solve, &mut reweigh, &mut touched.held);
+    // Dynamic bodies are solved in the step only by implicit Euler (an explicit step's
+    // points are as light as their own mass within it: the estimate is better), only where
+    // the surface's frame is a turn and a uniform scale (a body's turning is not a turning
+    // in a sheared frame), and not while the guard stops the surface's steps (a step
+    // undone gives its bodies nothing; the estimate holds them).
+    let stepper = surface.stepper;
+    let dynamic_in_step = stepper.integrator() == Integrator::ImplicitEuler
+        && !stepper.diagnostics().last.recovered
+        && surface.frame.is_similarity();
+    touched.impulses = rigid.resolve(
+        by_body,
+        params,
+        (solve, dynamic_in_step),
+        &mut reweigh,
+        &mut touched.held,
+    );
     touched
 }
 

@@ -160,15 +160,21 @@ pub struct Proximity {
     pub inv_mass: f32,
 }
 
-/// A contact with a body that nothing moves (the ground, a wall, a kinematic paddle), handed
-/// to the step instead of as a force ([`ExternalForces::add_contact`]), in the surface's own
-/// coordinates: the step gives the point's velocity along `normal` at least `min_speed` at
-/// its end, by the least push along the normal that the springs, solved together with it,
-/// allow, and the point slides along the body with Coulomb friction. Unlike an impulse
-/// estimated before the step, this moves a pushed patch exactly as far as the body moves it
-/// (issue 35): the point's neighbours are solved with it, not guessed.
+/// A contact handed to the step instead of as a force ([`ExternalForces::add_contact`]), in
+/// the surface's own coordinates: the step gives the point's velocity along `normal` at
+/// least `min_speed` at its end, by the least push along the normal that the springs,
+/// solved together with it, allow, and the point slides along the body with Coulomb
+/// friction. Unlike an impulse estimated before the step, this moves a pushed patch exactly
+/// as far as the body moves it (issue 35): the point's neighbours are solved with it, not
+/// guessed.
+///
+/// With `body` none, the body is one nothing moves (the ground, a wall, a kinematic paddle).
+/// With a [`StepBody`] ([`ExternalForces::add_body`]), `min_speed` and `body_velocity` are
+/// taken at the body's guessed velocity, and the step solves the body's velocity with the
+/// surface's (see [`StepBody`]).
 ///
 /// [`ExternalForces::add_contact`]: super::ExternalForces::add_contact
+/// [`ExternalForces::add_body`]: super::ExternalForces::add_body
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct StepContact {
     /// The simulation point's index.
@@ -183,16 +189,63 @@ pub struct StepContact {
     pub body_velocity: Vec3,
     /// Coulomb friction coefficient μ.
     pub friction: f32,
+    /// The body that moves, as its index among the step's bodies; none for one nothing
+    /// moves.
+    pub body: Option<u32>,
+    /// Where the contact is, from the body's centre of mass.
+    pub arm: Vec3,
 }
 
-/// The contact of `p` with the immovable `body` for the step to solve, in world coordinates
-/// like `p`: whether it touches is the step's to find, with the springs' forces solved
-/// (`None` only for a point index beyond `u32`).
+/// A body the surface moves and that moves the surface, solved with it within the step, in
+/// the surface's own coordinates: its velocity at the end of the step is found with the
+/// surface's, by a few rounds of (1) the surface solved with its points held to the body's
+/// current velocity, (2) the body's velocity the surface's pushes would give it, and (3) a
+/// quasi-Newton step between the two, its Jacobian first from the held points' step masses
+/// along their normals, then corrected by Broyden's update from what each round saw. The
+/// body takes the exact opposite of what the surface took, whatever the rounds left, so
+/// momentum is exchanged exactly.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StepBody {
+    /// Linear velocity the body will have at the end of the step without the surface.
+    pub linear: Vec3,
+    /// Angular velocity the body will have at the end of the step without the surface.
+    pub angular: Vec3,
+    /// The first guess of its linear velocity with the surface (an estimate; the contacts'
+    /// `min_speed` and `body_velocity` are taken at it).
+    pub guess_linear: Vec3,
+    /// The first guess of its angular velocity with the surface.
+    pub guess_angular: Vec3,
+    /// Its inverse mass, as a matrix (locked axes and the frame's turn included).
+    pub inv_mass: Mat3,
+    /// Its inverse inertia tensor.
+    pub inv_inertia: Mat3,
+    /// A number that names the body from one step to the next (rapier's handle), so that
+    /// the step starts from how the surface resisted it the step before.
+    pub key: u64,
+}
+
+impl StepBody {
+    /// Whether every number is finite.
+    pub fn is_finite(&self) -> bool {
+        self.linear.is_finite()
+            && self.angular.is_finite()
+            && self.guess_linear.is_finite()
+            && self.guess_angular.is_finite()
+            && self.inv_mass.is_finite()
+            && self.inv_inertia.is_finite()
+    }
+}
+
+/// The contact of `p` with `body` for the step to solve, in world coordinates like `p`, at
+/// the body's current velocities: whether it touches is the step's to find, with the
+/// springs' forces solved (`None` only for a point index beyond `u32`). `moving`: the
+/// body's index among the step's bodies, for a body that moves.
 pub fn step_contact(
     body: &BodyState,
     p: &Proximity,
     dt: f32,
     params: &ContactParams,
+    moving: Option<u32>,
 ) -> Option<StepContact> {
     let body_velocity = body.velocity_at(p.at);
     Some(StepContact {
@@ -201,6 +254,8 @@ pub fn step_contact(
         min_speed: body_velocity.dot(p.normal) + allowed_speed(p, dt, params),
         body_velocity,
         friction: params.friction,
+        body: moving,
+        arm: p.at - body.center,
     })
 }
 

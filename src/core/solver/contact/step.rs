@@ -86,6 +86,7 @@ mod tests {
 
     use super::*;
     use crate::core::fixtures::cloth::{CLOTH_MASS, cloth_grid};
+    use crate::core::solver::contact::StepBody;
     use crate::core::solver::{Integrator, Solver, SubstepPolicy};
 
     const DT: f32 = 1.0 / 60.0;
@@ -115,6 +116,8 @@ mod tests {
             min_speed,
             body_velocity: Vec3::ZERO,
             friction: 0.5,
+            body: None,
+            arm: Vec3::ZERO,
         }
     }
 
@@ -182,6 +185,52 @@ mod tests {
     }
 
     #[test]
+    fn a_body_pushing_the_sheet_is_solved_with_it_and_takes_the_opposite_impulse() {
+        // No gravity; a 0.5 kg body moving along −X at 1 m/s meets the middle 2 × 2 points
+        // of the free sheet (6.4 kg), pushing along the sheet.
+        let mut solver = sheet(Integrator::ImplicitEuler, false);
+        let mass = 0.5;
+        let body = solver
+            .external
+            .add_body(StepBody {
+                linear: -Vec3::X,
+                angular: Vec3::ZERO,
+                guess_linear: -Vec3::X,
+                guess_angular: Vec3::ZERO,
+                inv_mass: glam::Mat3::IDENTITY / mass,
+                inv_inertia: glam::Mat3::ZERO,
+                key: 1,
+            })
+            .unwrap();
+        let held = [27, 28, 35, 36];
+        for &i in &held {
+            let c = StepContact {
+                body: Some(body),
+                body_velocity: -Vec3::X,
+                ..contact(i, -Vec3::X, 1.0)
+            };
+            solver.add_contact(c).unwrap();
+        }
+        solver.step(DT).unwrap();
+        let given: Vec3 = solver.contact_impulses().iter().sum();
+        // The body takes the opposite of what the surface took.
+        let body_velocity = -Vec3::X - given / mass;
+        let momentum: Vec3 = (0..solver.len())
+            .map(|i| solver.velocity(i) * CLOTH_MASS)
+            .sum();
+        assert!((momentum + body_velocity * mass + Vec3::X * mass).length() < 1e-4);
+        // The sheet slowed it, and the held points end moving with it.
+        assert!(body_velocity.x > -0.9, "{body_velocity}");
+        for &i in &held {
+            let v = solver.velocity(i).x;
+            assert!(
+                (v - body_velocity.x).abs() < 0.01,
+                "{v} against {body_velocity}"
+            );
+        }
+    }
+
+    #[test]
     fn a_contact_that_would_pull_lets_go() {
         // A sheet leaving the ground at 1 m/s: the ground holds nothing back.
         for integrator in [Integrator::ImplicitEuler, Integrator::SymplecticEuler] {
@@ -208,13 +257,18 @@ mod tests {
             solver.step(DT).unwrap();
         }
         let (diagnostics, warm_start, held) = solver.stepper.carried();
-        assert_eq!(held.len(), solver.len(), "every point rests on the ground");
+        assert_eq!(
+            held.0.len(),
+            solver.len(),
+            "every point rests on the ground"
+        );
+        assert_eq!(held.1.len(), solver.len());
         // A stepper restored from what it carried steps as the original does.
         let mut restored = solver.clone();
         restored.stepper.implicit = Default::default();
         restored
             .stepper
-            .set_carried(diagnostics, &warm_start, &held);
+            .set_carried(diagnostics, &warm_start, (&held.0, &held.1));
         assert_eq!(restored.stepper.carried().2, held);
         for s in [&mut solver, &mut restored] {
             on_the_ground(s);
