@@ -10,7 +10,7 @@ use bevy_rapier3d::rapier::math::Pose;
 use bevy_rapier3d::rapier::parry::shape::Shape;
 
 use crate::core::solver::Integrator;
-use crate::core::solver::contact::{ContactImpulse, ContactParams, Proximity, group_step_masses};
+use crate::core::solver::contact::{ContactImpulse, ContactParams, Proximity, SpringIncidence};
 
 use super::ContactSolve;
 use super::bodies::{BodyContacts, Held, RigidSide};
@@ -53,8 +53,14 @@ pub(super) fn touch(
     }
     let world = surface.world_points(dt);
     let by_body = proximities_by_body(surface, &world, &near, &rigid.context, dt);
+    // Built on the first body that several points touch, once for all of this tick's.
+    let incidence = std::cell::OnceCell::new();
     let mut reweigh = |proximities: &mut [Proximity], touching: &[bool]| {
-        together(surface, proximities, touching, dt);
+        let incidence = incidence.get_or_init(|| {
+            let springs: Vec<_> = surface.springs.iter().map(|(_, s)| s).collect();
+            SpringIncidence::new(surface.points.len(), &springs)
+        });
+        together(surface, incidence, proximities, touching, dt);
     };
     // Dynamic bodies are solved in the step only by implicit Euler (an explicit step's
     // points are as light as their own mass within it: the estimate is better), only where
@@ -111,21 +117,31 @@ fn proximities_by_body(
 }
 
 /// The points that touch one body together move together within the tick: each takes the
-/// mass of [`group_step_masses`], without the springs to the others (`touching[k]`: whether
-/// `proximities[k]` touches).
-fn together(surface: &SurfaceView<'_>, proximities: &mut [Proximity], touching: &[bool], dt: f32) {
-    let mut mask = vec![false; surface.points.len()];
-    for (p, _) in proximities.iter().zip(touching).filter(|(_, t)| **t) {
-        mask[p.point] = true;
-    }
-    let masses = group_step_masses(
-        surface.masses.masses(),
-        surface.springs.iter().map(|(_, s)| s),
-        &mask,
-        dt,
-    );
+/// mass of [`group_step_masses`](crate::core::solver::contact::group_step_masses), without
+/// the springs to the others (`touching[k]`: whether `proximities[k]` touches), from the
+/// springs' `incidence` (the points' own springs only).
+fn together(
+    surface: &SurfaceView<'_>,
+    incidence: &SpringIncidence,
+    proximities: &mut [Proximity],
+    touching: &[bool],
+    dt: f32,
+) {
+    let mut touched: Vec<usize> = proximities
+        .iter()
+        .zip(touching)
+        .filter(|(_, t)| **t)
+        .map(|(p, _)| p.point)
+        .collect();
+    touched.sort_unstable();
+    let touches = |i: usize| touched.binary_search(&i).is_ok();
+    let masses = surface.masses.masses();
     for p in proximities.iter_mut() {
-        p.inv_mass = surface.inv_mass(p.point, masses[p.point]);
+        let Some(&mass) = masses.get(p.point) else {
+            continue;
+        };
+        let step_mass = incidence.group_step_mass(mass, p.point, touches, dt);
+        p.inv_mass = surface.inv_mass(p.point, step_mass);
     }
 }
 
