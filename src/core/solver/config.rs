@@ -77,9 +77,9 @@ pub enum DampingModel {
     /// The paper's eq 3: k_d·(v_b − v_a), the whole relative velocity. It also damps
     /// sliding and bending motion across the spring, and rigid rotation: a free sphere
     /// spun at 1 rad/s has no spin left after 5 s (`tests/materials.rs`). The default:
-    /// contacts reach the implicit step only through estimated step masses, and their
-    /// sideways kicks need eq 3's damping (see `docs/ARCHITECTURE.md`); explicit Euler
-    /// needs it too.
+    /// contacts are solved in the step now, but undamped sideways motion still lets a
+    /// noisy scan's outliers swing and a plastic surface stepped explicitly flow the wrong
+    /// way (see `docs/ARCHITECTURE.md`); explicit Euler needs it too.
     #[default]
     Relative,
     /// Along the spring only: k_d·((v_b − v_a)·l̂)·l̂, as most cloth codes do. A central
@@ -269,8 +269,9 @@ pub enum BendingModel {
     /// The paper's bend springs (§4.2): a central spring from ring vertex r to r + 2. It
     /// resists folding only through the change of its length, which is of second order in
     /// the fold angle on flat ground, so finer networks are softer shells; the springs also
-    /// stiffen the sheet in its plane. The default, until contacts enter the implicit step
-    /// (see `docs/ARCHITECTURE.md`).
+    /// stiffen the sheet in its plane. The default, while axial damping is not (hinges damp
+    /// bending on their own) and hinges at the default modulus leave a snapped dimple (see
+    /// `docs/ARCHITECTURE.md`).
     #[default]
     Springs,
     /// A hinge at every inner edge of the network's mesh (discrete shells, see

@@ -87,7 +87,7 @@ mod tests {
     use super::*;
     use crate::core::fixtures::cloth::{CLOTH_MASS, cloth_grid};
     use crate::core::solver::contact::StepBody;
-    use crate::core::solver::{Integrator, Solver, SubstepPolicy};
+    use crate::core::solver::{Integrator, Solver, SolverError, SubstepPolicy};
 
     const DT: f32 = 1.0 / 60.0;
 
@@ -310,6 +310,35 @@ mod tests {
         bad.friction = 0.5;
         bad.body_velocity = Vec3::splat(f32::NAN);
         assert!(solver.add_contact(bad).is_err());
+        // A body with a number that is not finite, and a contact naming a body not added.
+        let mut body = StepBody {
+            linear: Vec3::ZERO,
+            angular: Vec3::ZERO,
+            guess_linear: Vec3::ZERO,
+            guess_angular: Vec3::ZERO,
+            inv_mass: glam::Mat3::IDENTITY,
+            inv_inertia: glam::Mat3::IDENTITY,
+            key: 0,
+        };
+        body.inv_mass.x_axis.x = f32::NAN;
+        assert!(matches!(
+            solver.external.add_body(body),
+            Err(SolverError::InvalidContact { what: "body", .. })
+        ));
+        let named = StepContact {
+            body: Some(0),
+            ..contact(0, Vec3::Y, 0.0)
+        };
+        assert!(matches!(
+            solver.add_contact(named),
+            Err(SolverError::InvalidContact {
+                what: "body index",
+                ..
+            })
+        ));
+        let mut far = contact(0, Vec3::Y, 0.0);
+        far.arm = Vec3::splat(f32::INFINITY);
+        assert!(solver.add_contact(far).is_err());
         // A normal of any length is made unit.
         solver.add_contact(contact(0, Vec3::Y * 3.0, 0.0)).unwrap();
         solver.step(DT).unwrap();
