@@ -72,6 +72,7 @@
 mod fit;
 mod frame;
 mod pins;
+mod spread;
 
 pub use pins::{PIN_BLEND, PIN_HOLD, Pins};
 

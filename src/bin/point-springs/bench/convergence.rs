@@ -157,7 +157,9 @@ enum Problem {
     /// The hat of Fig. 6 (3000 points), pinned at its rim, sagging under gravity.
     Hat,
     /// The sphere of Fig. 5 (3203 points) with gas inside, its lower fifth pinned, pressed
-    /// on its top by a fixed total force shared by mass over a disc: a ball.
+    /// on its top by a fixed total force shared evenly by the dense points of a disc and
+    /// carried to the simulation points by the transfer's transpose (the same load at every
+    /// level): a ball.
     Ball,
     /// The same sphere without gas, pressed more lightly: a shell, which only its bend
     /// springs keep from folding in.
@@ -194,10 +196,17 @@ struct Row {
     dense_points: usize,
     /// Σm / (ρ · the dense surface's area).
     mass_ratio: f32,
-    /// The largest displacement of a dense point along the load.
+    /// The mean displacement along the load of the dense points it acts on, weighted by
+    /// their shares of it (every dense point under gravity, the disc's under a poke): the
+    /// load's work over its total, the compliance.
     sag: f32,
     /// `sag` over the same material's finest level (set once that level has run).
     relative: f32,
+    /// The largest displacement of a dense point along the load: a local figure, which a
+    /// coarse network concentrates or spreads.
+    peak: f32,
+    /// `peak` over the same material's finest level.
+    relative_peak: f32,
     /// The largest speed at the end, over `sag` per second: small when settled.
     residual_speed: f32,
 }
@@ -221,13 +230,13 @@ impl fmt::Display for ConvergenceReport {
         writeln!(f)?;
         writeln!(
             f,
-            "| problem | material | simulation points | dense | Σm / ρA | sag or depth | relative | residual speed |"
+            "| problem | material | simulation points | dense | Σm / ρA | mean sag | relative | peak sag | relative | residual speed |"
         )?;
-        writeln!(f, "|---|---|---|---|---|---|---|---|")?;
+        writeln!(f, "|---|---|---|---|---|---|---|---|---|---|")?;
         for r in &self.rows {
             writeln!(
                 f,
-                "| {:?} | {} | {} | {} | {:.4} | {:.4} | {:.3} | {:.1e} |",
+                "| {:?} | {} | {} | {} | {:.4} | {:.4} | {:.3} | {:.4} | {:.3} | {:.1e} |",
                 r.problem,
                 r.material.name(),
                 r.sim_points,
@@ -235,6 +244,8 @@ impl fmt::Display for ConvergenceReport {
                 r.mass_ratio,
                 r.sag,
                 r.relative,
+                r.peak,
+                r.relative_peak,
                 r.residual_speed
             )?;
         }
@@ -269,9 +280,10 @@ pub fn run(args: &Args) -> Result<(), Failure> {
                 eprintln!("bench convergence: {problem:?}, {name}, {fraction} of the points");
                 runs.push(settle(problem, &cloud, material, fraction, args.steps)?);
             }
-            let reference = runs.last().map_or(1.0, |r: &Row| r.sag);
+            let (sag, peak) = runs.last().map_or((1.0, 1.0), |r: &Row| (r.sag, r.peak));
             for r in &mut runs {
-                r.relative = r.sag / reference;
+                r.relative = r.sag / sag;
+                r.relative_peak = r.peak / peak;
             }
             // A colour per problem, a line per material (hinges solid, springs dashed).
             series.push(Series {
@@ -338,7 +350,7 @@ fn settle(
     };
     let mut surface = prepare_surface(cloud.clone(), &config, &mut |_| ControlFlow::Continue(()))
         .map_err(Failure::other)?;
-    load(problem, &mut surface).map_err(Failure::other)?;
+    let shares = load(problem, &mut surface)?;
     for _ in 0..steps {
         surface.solver.step(DT).map_err(Failure::other)?;
     }
@@ -347,13 +359,15 @@ fn settle(
         .follow(&surface.solver.points)
         .map_err(Failure::other)?;
     let rest = surface.dense.transfer().rest_positions();
-    let sag = surface
+    let along: Vec<f32> = surface
         .dense
         .positions()
         .iter()
         .zip(rest)
         .map(|(p, r)| (*p - *r).dot(problem.load()))
-        .fold(0.0f32, f32::max);
+        .collect();
+    let peak = along.iter().copied().fold(0.0f32, f32::max);
+    let sag = along.iter().zip(&shares).map(|(u, w)| u * w).sum::<f32>();
     let network = &surface.network;
     Ok(Row {
         problem,
@@ -364,26 +378,32 @@ fn settle(
         mass_ratio: network.report.total_mass / (DENSITY * network.report.dense_area),
         sag,
         relative: 1.0,
-        residual_speed: surface.solver.points.max_speed() / sag.max(f32::MIN_POSITIVE),
+        peak,
+        relative_peak: 1.0,
+        residual_speed: surface.solver.points.max_speed() / peak.max(f32::MIN_POSITIVE),
     })
 }
 
 /// Pins and loads a prepared surface: the sheet and the hat at their rims (the network's
 /// boundary points), the ball and the shell below y = −0.6, pressed over the disc at
-/// their top.
+/// their top. Returns each dense point's share of the load (summing to 1): even over the
+/// dense surface under gravity (the clouds are evenly sampled), even over the disc's dense
+/// points under a poke.
 fn load(
     problem: Problem,
     surface: &mut PreparedSurface,
-) -> Result<(), bevy_point_springs::core::solver::SolverError> {
+) -> Result<Vec<f32>, Failure> {
     let network = &surface.network;
     let solver = &mut surface.solver;
+    let rest = surface.dense.transfer().rest_positions();
     match problem {
         Problem::Sheet | Problem::Hat => {
             for (i, &rim) in network.boundary.iter().enumerate() {
                 if rim {
-                    solver.set_fixed(i, true)?;
+                    solver.set_fixed(i, true).map_err(Failure::other)?;
                 }
             }
+            Ok(vec![1.0 / rest.len() as f32; rest.len()])
         }
         Problem::Ball | Problem::Shell => {
             let force = if problem == Problem::Ball {
@@ -391,27 +411,30 @@ fn load(
             } else {
                 SHELL_FORCE
             };
-            let mut top: Vec<usize> = (0..network.len())
-                .filter(|&i| network.positions[i].distance(Vec3::Y) < POKE_RADIUS)
+            let under = |p: &Vec3| p.distance(Vec3::Y) < POKE_RADIUS;
+            let count = rest.iter().filter(|p| under(p)).count().max(1);
+            let shares: Vec<f32> = rest
+                .iter()
+                .map(|p| if under(p) { 1.0 / count as f32 } else { 0.0 })
                 .collect();
-            if top.is_empty() {
-                // A network coarser than the disc: its point nearest the pole.
-                top.extend((0..network.len()).min_by(|&a, &b| {
-                    let d = |i: usize| network.positions[i].distance(Vec3::Y);
-                    d(a).total_cmp(&d(b))
-                }));
-            }
-            let mass: f32 = top.iter().map(|&i| network.masses[i]).sum();
-            for &i in &top {
-                let share = network.masses[i] / mass;
-                solver.set_external_force(i, Vec3::NEG_Y * force * share)?;
+            let dense_forces: Vec<Vec3> = shares.iter().map(|w| problem.load() * force * w).collect();
+            let mut forces = vec![Vec3::ZERO; network.len()];
+            surface
+                .dense
+                .transfer()
+                .spread_forces(&dense_forces, &mut forces)
+                .map_err(Failure::other)?;
+            for (i, f) in forces.into_iter().enumerate() {
+                if f != Vec3::ZERO {
+                    solver.set_external_force(i, f).map_err(Failure::other)?;
+                }
             }
             for i in 0..network.len() {
                 if network.positions[i].y < -0.6 {
-                    solver.set_fixed(i, true)?;
+                    solver.set_fixed(i, true).map_err(Failure::other)?;
                 }
             }
+            Ok(shares)
         }
     }
-    Ok(())
 }
