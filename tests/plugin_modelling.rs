@@ -12,56 +12,58 @@ mod plugin_app;
 use plugin_app::*;
 
 /// A floating sphere (1500 dense, 150 simulation points) made plastic while it runs (yield
-/// 5 %, creep 5 per second: the material system hands the springs their yield), its top
-/// grabbed (key 1) and the grab moved `pull` up. Returns the sphere, its top point and
-/// where that point was at rest.
-fn plastic_sphere_pulled_up(app: &mut App, pull: f32) -> (Entity, usize, Vec3) {
-    // Symplectic Euler, as these figures were measured with: the floating sphere follows the
-    // grab as a whole, and only the strain wave of the first ticks makes the springs flow,
-    // which implicit Euler's numerical damping at this step mostly takes out (0.18 kept).
-    let mut surface = floating(1500, 150);
-    surface.config.solver.integrator = Integrator::SymplecticEuler;
-    let sphere = app.world_mut().spawn(surface).id();
+/// 5 %, creep 5 per second: the material system hands the springs their yield), its bottom
+/// held (key 2), its top grabbed (key 1) and that grab moved `pull` up. Returns the sphere
+/// and its top and bottom points.
+fn plastic_sphere_pulled_up(app: &mut App, pull: f32) -> (Entity, usize, usize) {
+    let sphere = app.world_mut().spawn(floating(1500, 150)).id();
     settle(app, &[sphere]);
     let mut material = app.world_mut().get_mut::<SurfaceMaterial>(sphere).unwrap();
     material.yield_strain = 0.05;
     material.creep_rate = 5.0;
     let (top, top_rest) = nearest_point(app, sphere, Vec3::Y);
-    app.world_mut().write_message(GrabMessage::Start {
-        key: 1,
-        surface: sphere,
-        at: top_rest,
-    });
+    let (bottom, bottom_rest) = nearest_point(app, sphere, Vec3::NEG_Y);
+    for (key, at) in [(1, top_rest), (2, bottom_rest)] {
+        app.world_mut().write_message(GrabMessage::Start {
+            key,
+            surface: sphere,
+            at,
+        });
+    }
     app.update();
     app.world_mut().write_message(GrabMessage::Move {
         key: 1,
         target: top_rest + Vec3::Y * pull,
     });
-    (sphere, top, top_rest)
+    (sphere, top, bottom)
 }
 
 #[test]
 fn a_plastic_material_keeps_what_a_grab_pulled_out() {
     let mut app = create_app(&assets_dir(), TICK);
     let pull = 0.4;
-    let (sphere, top, top_rest) = plastic_sphere_pulled_up(&mut app, pull);
-    let y = |app: &App| {
-        app.world()
-            .get::<SimulationPoints>(sphere)
-            .unwrap()
-            .position(top)
-            .y
+    let (sphere, top, bottom) = plastic_sphere_pulled_up(&mut app, pull);
+    // How far apart the pulled and the held point are: the sphere's shape, whatever rigid
+    // motion the grabs leave it (damping that leaves rigid motion alone keeps a drift or a
+    // spin).
+    let apart = |app: &App| {
+        let points = app.world().get::<SimulationPoints>(sphere).unwrap();
+        points.position(top).distance(points.position(bottom))
     };
+    let at_rest = apart(&app);
     for _ in 0..120 {
         app.update();
     }
-    app.world_mut().write_message(GrabMessage::End { key: 1 });
+    for key in [1, 2] {
+        app.world_mut().write_message(GrabMessage::End { key });
+    }
     for _ in 0..300 {
         app.update();
     }
-    let kept = y(&app) - top_rest.y;
+    let kept = apart(&app) - at_rest;
     println!("plastic grab: {kept:.3} of a {pull} pull kept 300 ticks after release");
-    // An elastic sphere keeps 0.163 of this pull at this point (measured), springing back.
+    // Measured 2026-12-03 at the default settings: 0.337 kept; the same sphere elastic
+    // (no creep) springs back to within 0.001.
     assert!(kept > 0.8 * pull, "only {kept} of a {pull} pull was kept");
     assert!(status(&app, sphere).is_ready());
 }

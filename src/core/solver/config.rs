@@ -76,17 +76,18 @@ impl std::str::FromStr for Integrator {
 pub enum DampingModel {
     /// The paper's eq 3: k_d·(v_b − v_a), the whole relative velocity. It also damps
     /// sliding and bending motion across the spring, and rigid rotation: a free sphere
-    /// spun at 1 rad/s has no spin left after 5 s (`tests/materials.rs`). The default:
-    /// contacts are solved in the step now, but undamped sideways motion still lets a
-    /// noisy scan's outliers swing and a plastic surface stepped explicitly flow the wrong
-    /// way (see `docs/ARCHITECTURE.md`); explicit Euler needs it too.
-    #[default]
+    /// spun at 1 rad/s has no spin left after 5 s (`tests/materials.rs`). Kept for the
+    /// paper's method (`bench table1` and `bench report` use it) and for explicit Euler,
+    /// whose damping time it sets; it also settles a surface faster where that matters
+    /// more than its rigid motion.
     Relative,
     /// Along the spring only: k_d·((v_b − v_a)·l̂)·l̂, as most cloth codes do. A central
     /// force, so it leaves rigid motion alone (with implicit Euler the step also keeps the
     /// momenta, see `docs/ARCHITECTURE.md`); bending is damped by the hinges' own damping
     /// ([`SpringMaterial::bending_damping`]) or the bend springs'. With explicit Euler its
-    /// stable-step estimate hands over to implicit Euler.
+    /// stable-step estimate hands over to implicit Euler. The default (see
+    /// `docs/ARCHITECTURE.md`, "Bending on hinges").
+    #[default]
     Axial,
 }
 
@@ -269,16 +270,15 @@ pub enum BendingModel {
     /// The paper's bend springs (§4.2): a central spring from ring vertex r to r + 2. It
     /// resists folding only through the change of its length, which is of second order in
     /// the fold angle on flat ground, so finer networks are softer shells; the springs also
-    /// stiffen the sheet in its plane. The default, while axial damping is not (hinges damp
-    /// bending on their own) and hinges at the default modulus leave a snapped dimple (see
-    /// `docs/ARCHITECTURE.md`).
-    #[default]
+    /// stiffen the sheet in its plane. Kept so that the paper's method stays reproducible.
     Springs,
     /// A hinge at every inner edge of the network's mesh (discrete shells, see
     /// [`Hinges`]) with the energy E = k·(θ − θ̄)², k = `bending_modulus`·3|ē|²/(6·Ā) (Ā the
     /// two triangles' rest area): a plate of flexural rigidity `bending_modulus` (N·m) with
     /// the Poisson's ratio [`HINGE_POISSON_RATIO`], on any network spacing. No bend springs:
-    /// the stretch springs alone carry the sheet in its plane.
+    /// the stretch springs alone carry the sheet in its plane. The default: a coarse
+    /// network bends like a fine one (`point-springs bench convergence`).
+    #[default]
     Hinges,
 }
 
@@ -491,12 +491,19 @@ impl Default for SpringMaterial {
 }
 
 /// The default flexural rigidity of [`SpringMaterial`]'s hinges, N·m: a sheet as stiff in
-/// its plane as the default springs (about 200 N/m) and 2.5 cm thick, D = E·t²/12.
-pub const DEFAULT_BENDING_MODULUS: f32 = 0.01;
+/// its plane as the default springs (about 200 N/m) and about 4 cm thick, D = E·t²/12, so a
+/// unit sphere without gas is a shell of radius 24 times its thickness. Measured: a grabbed
+/// and released sphere without gas springs back (at 0.01 N·m, a radius 41 times the
+/// thickness, it kept a snapped-through dimple, as a ping-pong ball does; at 0.1 the
+/// kitten's conjugate-gradient iterations doubled).
+pub const DEFAULT_BENDING_MODULUS: f32 = 0.03;
 
 /// The default damping time of [`SpringMaterial`]'s hinges, s: a bending mode of 10 rad/s
-/// damped at the ratio 0.05, the fastest modes of a fine network overdamped.
-pub const DEFAULT_BENDING_DAMPING: f32 = 0.01;
+/// damped at the ratio 0.25, the fastest modes of a fine network overdamped. With axial
+/// spring damping the hinges are what damps motion across a sheet: at 0.01 s a 20 m/s ball
+/// bounced off a pinned sheet at 8.8 m/s and was thrown 7.5 m/s sideways (0.05: 4.5 and
+/// 1.7 m/s; `tests/contact.rs`).
+pub const DEFAULT_BENDING_DAMPING: f32 = 0.05;
 
 /// The default yield strain of [`SpringMaterial`]: 10 % (used once a creep rate is set).
 pub const DEFAULT_YIELD_STRAIN: f32 = 0.1;

@@ -389,10 +389,7 @@ fn settle(
 /// their top. Returns each dense point's share of the load (summing to 1): even over the
 /// dense surface under gravity (the clouds are evenly sampled), even over the disc's dense
 /// points under a poke.
-fn load(
-    problem: Problem,
-    surface: &mut PreparedSurface,
-) -> Result<Vec<f32>, Failure> {
+fn load(problem: Problem, surface: &mut PreparedSurface) -> Result<Vec<f32>, Failure> {
     let network = &surface.network;
     let solver = &mut surface.solver;
     let rest = surface.dense.transfer().rest_positions();
@@ -417,7 +414,8 @@ fn load(
                 .iter()
                 .map(|p| if under(p) { 1.0 / count as f32 } else { 0.0 })
                 .collect();
-            let dense_forces: Vec<Vec3> = shares.iter().map(|w| problem.load() * force * w).collect();
+            let dense_forces: Vec<Vec3> =
+                shares.iter().map(|w| problem.load() * force * w).collect();
             let mut forces = vec![Vec3::ZERO; network.len()];
             surface
                 .dense

@@ -16,7 +16,7 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use bevy_point_springs::core::scene::{LevelChoice, Scene};
-use bevy_point_springs::core::solver::Integrator;
+use bevy_point_springs::core::solver::{BendingModel, Integrator};
 use indicatif::{ProgressBar, ProgressStyle};
 
 use crate::failure::Failure;
@@ -48,10 +48,12 @@ struct Plan {
     seconds: f32,
     /// Steps timed per Table 1 row.
     table1_steps: usize,
+    /// How the scenes bend.
+    bending: BendingModel,
 }
 
 impl Plan {
-    fn new(quick: bool) -> Self {
+    fn new(quick: bool, bending: BendingModel) -> Self {
         if quick {
             Self {
                 fractions: vec![1.0, 0.1, 0.02],
@@ -59,6 +61,7 @@ impl Plan {
                 reference_dt: 1.0 / 240.0,
                 seconds: 3.0,
                 table1_steps: 30,
+                bending,
             }
         } else {
             Self {
@@ -67,6 +70,7 @@ impl Plan {
                 reference_dt: 1.0 / 480.0,
                 seconds: 5.0,
                 table1_steps: 150,
+                bending,
             }
         }
     }
@@ -91,6 +95,30 @@ pub struct Args {
     /// The folder holding `kitten.off` and `scenes/sphere_poke.ron`.
     #[arg(long, default_value = "assets")]
     assets: PathBuf,
+    /// How the scenes bend: the paper's bend springs (the default: with them every
+    /// integrator runs at every level; hinges stiffen the explicit schemes' stable step as
+    /// the spacing to the −4th) or hinges (the library's default model).
+    #[arg(long, value_enum, default_value_t = Bending::Springs)]
+    bending: Bending,
+}
+
+/// `--bending`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum Bending {
+    /// `BendingModel::Springs`.
+    Springs,
+    /// `BendingModel::Hinges`.
+    Hinges,
+}
+
+impl Bending {
+    /// The model.
+    pub fn model(self) -> BendingModel {
+        match self {
+            Self::Springs => BendingModel::Springs,
+            Self::Hinges => BendingModel::Hinges,
+        }
+    }
 }
 
 /// One configuration's row.
@@ -155,7 +183,8 @@ pub struct Budget {
 
 /// Runs `bench report`.
 pub fn run(args: &Args) -> Result<(), Failure> {
-    let plan = Plan::new(args.quick);
+    let plan = Plan::new(args.quick, args.bending.model());
+    let bending = plan.bending;
     let table1_path = args.assets.join(TABLE1_SCENE);
     let (table1_scene, table1_base) = Scene::load(&table1_path).map_err(|e| {
         Failure::bad_input(format!(
@@ -186,6 +215,7 @@ pub fn run(args: &Args) -> Result<(), Failure> {
         let config = scene.scene(
             cloud,
             1.0,
+            bending,
             Integrator::ImplicitEuler,
             plan.reference_dt,
             plan.seconds,
@@ -208,7 +238,8 @@ pub fn run(args: &Args) -> Result<(), Failure> {
                         fraction * 100.0,
                         1.0 / dt
                     ));
-                    let config = scene.scene(cloud, fraction, integrator, dt, plan.seconds);
+                    let config =
+                        scene.scene(cloud, fraction, bending, integrator, dt, plan.seconds);
                     let outcome = run_scene(&config, cloud, diagonal)?;
                     let error = outcome
                         .surface
@@ -248,6 +279,7 @@ pub fn run(args: &Args) -> Result<(), Failure> {
     mark_pareto(&mut rows);
     let report = output::Report {
         quick: args.quick,
+        bending,
         seconds: plan.seconds,
         reference_dt: plan.reference_dt,
         threads: rayon::current_num_threads(),
@@ -276,8 +308,16 @@ fn budget(
     bar: &ProgressBar,
 ) -> Result<Budget, Failure> {
     let dt = plan.dts[0];
-    let config =
-        |fraction| scene.scene(cloud, fraction, Integrator::ImplicitEuler, dt, plan.seconds);
+    let config = |fraction| {
+        scene.scene(
+            cloud,
+            fraction,
+            plan.bending,
+            Integrator::ImplicitEuler,
+            dt,
+            plan.seconds,
+        )
+    };
     let start = Instant::now();
     let choice = config(1.0)
         .choose_level(cloud, RMS_GOAL as f32)

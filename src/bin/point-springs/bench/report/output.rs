@@ -5,6 +5,7 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use bevy_point_springs::core::cloud::io::write_atomically;
+use bevy_point_springs::core::solver::BendingModel;
 use serde::Serialize;
 
 use super::scenes::ReportScene;
@@ -21,6 +22,8 @@ const CHART_FLOOR: f64 = 1e-7;
 pub struct Report {
     /// Whether it was `--quick`.
     pub quick: bool,
+    /// How the scenes bent.
+    pub bending: BendingModel,
     /// Simulated time of every run, s.
     pub seconds: f32,
     /// The references' step, s.
@@ -41,6 +44,8 @@ pub struct Report {
 #[derive(Debug, Serialize)]
 struct Summary {
     quick: bool,
+    /// `springs` or `hinges`.
+    bending: &'static str,
     /// The RMS error goal, over the diagonal.
     rms_goal: f64,
     /// The speed-up goal over the full-resolution frame.
@@ -215,6 +220,7 @@ impl Report {
         }
         Summary {
             quick: self.quick,
+            bending: bending_name(self.bending),
             rms_goal: RMS_GOAL,
             speedup_goal: SPEEDUP_GOAL,
             table1: self
@@ -296,12 +302,16 @@ impl Report {
         let _ = writeln!(t, "# Speed against error\n");
         let _ = writeln!(
             t,
-            "`point-springs bench report{}`: every run simulates {} s; a frame is 1/60 s of steps \
+            "`point-springs bench report{}{}`: every run simulates {} s; a frame is 1/60 s of steps \
              and one transfer of positions and normals to every dense point; errors are distances \
              of the dense surface at the end from the reference's (every dense point simulated, \
              implicit Euler at dt 1/{:.0}), over the bounding box's diagonal. {} threads. \
              Times are one run on this machine.\n",
             if self.quick { " --quick" } else { "" },
+            match self.bending {
+                BendingModel::Springs => "",
+                BendingModel::Hinges => " --bending hinges",
+            },
             self.seconds,
             1.0 / self.reference_dt,
             self.threads
@@ -586,4 +596,12 @@ fn rms(r: &Row) -> f64 {
 
 fn yes(b: bool) -> &'static str {
     if b { "yes" } else { "no" }
+}
+
+/// The `--bending` value of a model.
+fn bending_name(bending: BendingModel) -> &'static str {
+    match bending {
+        BendingModel::Springs => "springs",
+        BendingModel::Hinges => "hinges",
+    }
 }

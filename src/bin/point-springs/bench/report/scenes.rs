@@ -11,7 +11,7 @@ use bevy_point_springs::core::cloud::shapes::{fibonacci_sphere, hat, square_shee
 use bevy_point_springs::core::scene::{Pull, Region, Scene, level_target};
 use bevy_point_springs::core::simplify::SimplifyConfig;
 use bevy_point_springs::core::solver::{
-    DampingModel, Integrator, MaterialUnits, SolverConfig, SpringMaterial,
+    BendingModel, DampingModel, Integrator, MaterialUnits, SolverConfig, SpringMaterial,
 };
 use glam::Vec3;
 use serde::Serialize;
@@ -34,10 +34,12 @@ const RAMP_S: f32 = 1.0;
 const SPHERE_GAS: f32 = 100.0;
 
 /// The material of every scene, in a sheet's units so that every level models the same
-/// sheet (see `MaterialUnits::Sheet`): stretch and bend moduli 70 N/m, damping ratios 0.3.
-fn material(density: f32) -> SpringMaterial {
+/// sheet (see `MaterialUnits::Sheet`): stretch and bend moduli 70 N/m, damping ratios 0.3,
+/// bending as `bending` says (hinges of the default flexural rigidity).
+fn material(density: f32, bending: BendingModel) -> SpringMaterial {
     SpringMaterial {
         density,
+        bending,
         units: MaterialUnits::Sheet,
         stretch_stiffness: 70.0,
         bend_stiffness: 70.0,
@@ -94,12 +96,13 @@ impl ReportScene {
         })
     }
 
-    /// The scene on `cloud` at `fraction` of its points, stepped by `integrator` at `dt` for
-    /// `seconds`.
+    /// The scene on `cloud` at `fraction` of its points, bending as `bending` says, stepped
+    /// by `integrator` at `dt` for `seconds`.
     pub fn scene(
         self,
         cloud: &PointCloud,
         fraction: f32,
+        bending: BendingModel,
         integrator: Integrator,
         dt: f32,
         seconds: f32,
@@ -108,7 +111,7 @@ impl ReportScene {
         let ramp = ((RAMP_S / dt).round() as usize).max(1);
         let (material, gravity, pressure, pins, pulls) = match self {
             Self::Sphere => (
-                material(0.2),
+                material(0.2, bending),
                 Vec3::ZERO,
                 Some(SPHERE_GAS),
                 vec![Region::Box {
@@ -118,7 +121,7 @@ impl ReportScene {
                 held_pull(Vec3::Y, 0.3, Vec3::Y * 0.7, ramp),
             ),
             Self::Hat => (
-                material(1.0),
+                material(1.0, bending),
                 Vec3::NEG_Y * GRAVITY,
                 None,
                 vec![Region::Box {
@@ -128,7 +131,7 @@ impl ReportScene {
                 Vec::new(),
             ),
             Self::Sheet => (
-                material(1.0),
+                material(1.0, bending),
                 Vec3::NEG_Z * GRAVITY,
                 None,
                 sheet_edges(0.95),
@@ -147,7 +150,7 @@ impl ReportScene {
                     .map(|p| p.y)
                     .fold(f32::INFINITY, f32::min);
                 (
-                    material(1.0),
+                    material(1.0, bending),
                     Vec3::ZERO,
                     None,
                     vec![Region::Box {
