@@ -1,11 +1,13 @@
 //! `point-springs bench convergence`: does a coarse network model the same surface as a fine
-//! one? Three static problems, each prepared at several simplification levels (down from
+//! one? Four static problems, each prepared at several simplification levels (down from
 //! every dense point as a simulation point), with the material per spring (the paper's), as a
 //! sheet's moduli (see `MaterialUnits`), and as a sheet bending on hinges (see
-//! `BendingModel::Hinges`), run to equilibrium; the measured sag or depth
-//! (on the dense surface, after the transfer) is compared with the same material's finest
-//! level. A Markdown table or JSON, the total mass against ρ times the dense area, and a chart
-//! (SVG and PNG) of the sag over the level.
+//! `BendingModel::Hinges`), run to equilibrium. Each load is defined on the dense surface, so
+//! every level carries the same one; the sag (the load-weighted mean displacement of the dense
+//! points it acts on) and the peak displacement, both measured on the dense surface after the
+//! transfer, are compared with the same material's finest level. A Markdown table or JSON,
+//! the total mass against ρ times the dense area, and a chart (SVG and PNG) of the sag over
+//! the level.
 
 use std::fmt;
 use std::ops::ControlFlow;
@@ -161,8 +163,8 @@ enum Problem {
     /// carried to the simulation points by the transfer's transpose (the same load at every
     /// level): a ball.
     Ball,
-    /// The same sphere without gas, pressed more lightly: a shell, which only its bend
-    /// springs keep from folding in.
+    /// The same sphere without gas, pressed more lightly: a shell, which only its bending
+    /// keeps from folding in.
     Shell,
 }
 
@@ -207,7 +209,7 @@ struct Row {
     peak: f32,
     /// `peak` over the same material's finest level.
     relative_peak: f32,
-    /// The largest speed at the end, over `sag` per second: small when settled.
+    /// The largest speed at the end, over `peak` per second: small when settled.
     residual_speed: f32,
 }
 
