@@ -6,6 +6,7 @@ use std::path::{Path, PathBuf};
 use bevy_point_springs::core::PointCloud;
 use bevy_point_springs::core::cloud::io::{CloudFormat, PlyEncoding, read_cloud, write_ply};
 use bevy_point_springs::core::normals::denoise::Denoise;
+use bevy_point_springs::core::solver::BendingModel;
 use clap::ValueEnum;
 use glam::Vec3;
 
@@ -125,5 +126,23 @@ pub fn parse_vec3(s: &str) -> Result<Vec3, String> {
     match parts[..] {
         [x, y, z] if x.is_finite() && y.is_finite() && z.is_finite() => Ok(Vec3::new(x, y, z)),
         _ => Err(format!("expected three finite numbers x,y,z, got {s:?}")),
+    }
+}
+
+/// `--bending` values.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum BendingArg {
+    /// The paper's bend springs.
+    Springs,
+    /// Hinges (discrete shells).
+    Hinges,
+}
+
+impl From<BendingArg> for BendingModel {
+    fn from(b: BendingArg) -> Self {
+        match b {
+            BendingArg::Springs => Self::Springs,
+            BendingArg::Hinges => Self::Hinges,
+        }
     }
 }

@@ -219,6 +219,19 @@ pub enum TransferError {
     /// A snapshot's dense surface does not fit this one, or holds bad values.
     #[error("the snapshot's dense surface does not fit: {0}")]
     Snapshot(String),
+    /// Forces handed to [`Transfer::spread_forces`] do not match the points.
+    #[error("the {which} forces: expected {expected}, got {found}")]
+    ForceCount {
+        /// "dense" or "simulation".
+        which: &'static str,
+        /// Points.
+        expected: usize,
+        /// Forces given.
+        found: usize,
+    },
+    /// A force handed to [`Transfer::spread_forces`] is not finite.
+    #[error("the force on dense point {0} is not finite")]
+    InvalidForce(usize),
     /// An output slice has the wrong length.
     #[error("the output holds {found} points, the transfer {expected}")]
     OutputLength {

@@ -16,23 +16,27 @@ impl Transfer {
     /// pressure over a disc, a pull at a dense point) reaches the simulation the same way at
     /// every simulation level.
     ///
-    /// Written into `simulation_forces` (one per simulation point, overwritten).
+    /// Written into `simulation_forces` (one per simulation point, overwritten). Lengths that
+    /// do not match and a non-finite force are typed errors.
     pub fn spread_forces(
         &self,
         dense_forces: &[Vec3],
         simulation_forces: &mut [Vec3],
     ) -> Result<(), TransferError> {
-        if dense_forces.len() != self.len() {
-            return Err(TransferError::OutputLength {
-                expected: self.len(),
-                found: dense_forces.len(),
-            });
+        for (which, expected, found) in [
+            ("dense", self.len(), dense_forces.len()),
+            ("simulation", self.sim_rest.len(), simulation_forces.len()),
+        ] {
+            if found != expected {
+                return Err(TransferError::ForceCount {
+                    which,
+                    expected,
+                    found,
+                });
+            }
         }
-        if simulation_forces.len() != self.sim_rest.len() {
-            return Err(TransferError::DisplacementCount {
-                expected: self.sim_rest.len(),
-                found: simulation_forces.len(),
-            });
+        if let Some(i) = dense_forces.iter().position(|f| !f.is_finite()) {
+            return Err(TransferError::InvalidForce(i));
         }
         simulation_forces.fill(Vec3::ZERO);
         match &self.neighbours {
@@ -115,7 +119,7 @@ mod tests {
     }
 
     #[test]
-    fn spread_forces_refuses_wrong_lengths() {
+    fn spread_forces_refuses_wrong_lengths_and_non_finite_forces() {
         let dense = fibonacci_sphere(200, 1.0);
         let sim_rest = fibonacci_sphere(30, 1.0).positions().to_vec();
         let (p, n) = (dense.positions(), dense.normals().unwrap());
@@ -123,17 +127,30 @@ mod tests {
         let mut out = vec![Vec3::ZERO; 30];
         assert_eq!(
             transfer.spread_forces(&[Vec3::X; 199], &mut out),
-            Err(TransferError::OutputLength {
+            Err(TransferError::ForceCount {
+                which: "dense",
                 expected: 200,
                 found: 199
             })
         );
         assert_eq!(
             transfer.spread_forces(&[Vec3::X; 200], &mut out[..29]),
-            Err(TransferError::DisplacementCount {
+            Err(TransferError::ForceCount {
+                which: "simulation",
                 expected: 30,
                 found: 29
             })
+        );
+        let mut forces = [Vec3::X; 200];
+        forces[17].y = f32::NAN;
+        assert_eq!(
+            transfer.spread_forces(&forces, &mut out),
+            Err(TransferError::InvalidForce(17))
+        );
+        forces[17] = Vec3::splat(f32::INFINITY);
+        assert_eq!(
+            transfer.spread_forces(&forces, &mut out),
+            Err(TransferError::InvalidForce(17))
         );
     }
 }

@@ -24,14 +24,13 @@ use bevy_point_springs::core::cloud::surfels::{
 };
 use bevy_point_springs::core::pipeline::{DenseCloud, PreparedSurface};
 use bevy_point_springs::core::scene::{Scene, Timeline};
-use bevy_point_springs::core::solver::BendingModel;
 use bevy_point_springs::prelude::{
     DeformableSurface, DenseSurface, PointSpringsPlugin, PointSpringsSystems, SurfaceStatus,
 };
 use serde::Serialize;
 
 use super::poked_sphere;
-use crate::args::JsonFlag;
+use crate::args::{BendingArg, JsonFlag};
 use crate::failure::Failure;
 use crate::report::Report;
 
@@ -58,28 +57,9 @@ pub struct Args {
     single_threaded: bool,
     /// The bending model, in place of the scene's (its bend springs, or hinges).
     #[arg(long, value_enum)]
-    bending: Option<Bending>,
+    bending: Option<BendingArg>,
     #[command(flatten)]
     json: JsonFlag,
-}
-
-/// A bending model on the command line.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub enum Bending {
-    /// The paper's bend springs.
-    Springs,
-    /// Hinges (discrete shells).
-    Hinges,
-}
-
-impl Bending {
-    /// The model.
-    pub fn model(self) -> BendingModel {
-        match self {
-            Self::Springs => BendingModel::Springs,
-            Self::Hinges => BendingModel::Hinges,
-        }
-    }
 }
 
 /// Largest dense cloud the generated scene takes.
@@ -267,7 +247,7 @@ fn dense_of(app: &App, entity: Entity) -> Result<&DenseCloud, Failure> {
 fn scene(args: &Args, steps: usize) -> Result<(Scene, PointCloud, String), Failure> {
     let (mut scene, cloud, name) = scene_as_given(args, steps)?;
     if let Some(bending) = args.bending {
-        scene.material.bending = bending.model();
+        scene.material.bending = bending.into();
     }
     Ok((scene, cloud, name))
 }

@@ -19,6 +19,7 @@ use bevy_point_springs::core::scene::{LevelChoice, Scene};
 use bevy_point_springs::core::solver::{BendingModel, Integrator};
 use indicatif::{ProgressBar, ProgressStyle};
 
+use crate::args::BendingArg;
 use crate::failure::Failure;
 use measure::{Error, Outcome, error, run_scene};
 use scenes::ReportScene;
@@ -98,27 +99,8 @@ pub struct Args {
     /// How the scenes bend: the paper's bend springs (the default: with them every
     /// integrator runs at every level; hinges stiffen the explicit schemes' stable step as
     /// the spacing to the −4th) or hinges (the library's default model).
-    #[arg(long, value_enum, default_value_t = Bending::Springs)]
-    bending: Bending,
-}
-
-/// `--bending`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub enum Bending {
-    /// `BendingModel::Springs`.
-    Springs,
-    /// `BendingModel::Hinges`.
-    Hinges,
-}
-
-impl Bending {
-    /// The model.
-    pub fn model(self) -> BendingModel {
-        match self {
-            Self::Springs => BendingModel::Springs,
-            Self::Hinges => BendingModel::Hinges,
-        }
-    }
+    #[arg(long, value_enum, default_value_t = BendingArg::Springs)]
+    bending: BendingArg,
 }
 
 /// One configuration's row.
@@ -183,7 +165,7 @@ pub struct Budget {
 
 /// Runs `bench report`.
 pub fn run(args: &Args) -> Result<(), Failure> {
-    let plan = Plan::new(args.quick, args.bending.model());
+    let plan = Plan::new(args.quick, args.bending.into());
     let bending = plan.bending;
     let table1_path = args.assets.join(TABLE1_SCENE);
     let (table1_scene, table1_base) = Scene::load(&table1_path).map_err(|e| {
