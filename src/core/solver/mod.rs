@@ -16,9 +16,10 @@
 //! **Integrators** ([`Integrator`]), chosen per solver:
 //! explicit Euler (the paper's: x += v·h and v += a·h from the same old state), symplectic
 //! Euler (v += a·h, then x += v·h) and implicit Euler (backward Euler linearised once per
-//! step, Baraff & Witkin 1998, solved by conjugate gradient with a block-Jacobi
-//! preconditioner, warm-started from the previous step; the stiffness of compressed springs
-//! is clamped so the system stays positive definite).
+//! step, Baraff & Witkin 1998, solved by conjugate gradient preconditioned by block
+//! Jacobi, then by symmetric block Gauss–Seidel where a solve is hard, warm-started from
+//! the previous step; the stiffness of compressed springs is clamped so the system stays
+//! positive definite).
 //!
 //! **Stability.** Each explicit scheme knows its stable step ([`Solver::stability`]): with
 //! ω²_max ≤ maxᵢ (2Σⱼkᵢⱼ + k_anchor)/mᵢ (Gershgorin) and γ_max ≤ maxᵢ (2Σⱼk_dᵢⱼ + k_d,anchor)/mᵢ + μ,
