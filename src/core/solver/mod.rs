@@ -81,6 +81,7 @@ mod state;
 mod stepper;
 
 pub mod contact;
+pub mod membrane;
 
 use glam::Vec3;
 

@@ -5,7 +5,9 @@
 //! `BendingModel::Hinges`), run to equilibrium. Each load is defined on the dense surface, so
 //! every level carries the same one; the sag (the load-weighted mean displacement of the dense
 //! points it acts on) and the peak displacement, both measured on the dense surface after the
-//! transfer, are compared with the same material's finest level. A Markdown table or JSON,
+//! transfer, are compared with the same material's finest level, and the stretch springs'
+//! energy at the end with a constant-strain membrane's on the same triangles (how far the
+//! springs are from the membrane they stand for). A Markdown table or JSON,
 //! the total mass against ρ times the dense area, and a chart (SVG and PNG) of the sag over
 //! the level.
 
@@ -15,9 +17,11 @@ use std::path::PathBuf;
 
 use bevy_point_springs::core::PointCloud;
 use bevy_point_springs::core::cloud::shapes::{fibonacci_sphere, hat, square_sheet};
+use bevy_point_springs::core::network::SpringNetwork;
 use bevy_point_springs::core::pipeline::{PreparedSurface, SurfaceConfig, prepare_surface};
 use bevy_point_springs::core::scene::level_target;
 use bevy_point_springs::core::simplify::SimplifyConfig;
+use bevy_point_springs::core::solver::membrane::{LATTICE_POISSON_RATIO, membrane_energy};
 use bevy_point_springs::core::solver::{
     BendingModel, DEFAULT_BENDING_DAMPING, DEFAULT_YIELD_ANGLE, Integrator, MaterialUnits,
     SolverConfig, SpringMaterial,
@@ -211,6 +215,11 @@ struct Row {
     relative_peak: f32,
     /// The largest speed at the end, over `peak` per second: small when settled.
     residual_speed: f32,
+    /// The stretch springs' energy at the end over a constant-strain membrane's on the same
+    /// triangles for the same displacement (the sheet's stretch modulus, Poisson's ratio
+    /// 1/3; see `membrane`): 1 where the springs are the membrane they stand for, above 1
+    /// where they are stiffer.
+    springs_over_membrane: f32,
 }
 
 #[derive(Debug, Serialize)]
@@ -232,13 +241,13 @@ impl fmt::Display for ConvergenceReport {
         writeln!(f)?;
         writeln!(
             f,
-            "| problem | material | simulation points | dense | Σm / ρA | mean sag | relative | peak sag | relative | residual speed |"
+            "| problem | material | simulation points | dense | Σm / ρA | mean sag | relative | peak sag | relative | residual speed | springs / membrane |"
         )?;
-        writeln!(f, "|---|---|---|---|---|---|---|---|---|---|")?;
+        writeln!(f, "|---|---|---|---|---|---|---|---|---|---|---|")?;
         for r in &self.rows {
             writeln!(
                 f,
-                "| {:?} | {} | {} | {} | {:.4} | {:.4} | {:.3} | {:.4} | {:.3} | {:.1e} |",
+                "| {:?} | {} | {} | {} | {:.4} | {:.4} | {:.3} | {:.4} | {:.3} | {:.1e} | {:.3} |",
                 r.problem,
                 r.material.name(),
                 r.sim_points,
@@ -248,7 +257,8 @@ impl fmt::Display for ConvergenceReport {
                 r.relative,
                 r.peak,
                 r.relative_peak,
-                r.residual_speed
+                r.residual_speed,
+                r.springs_over_membrane
             )?;
         }
         writeln!(f)?;
@@ -383,7 +393,33 @@ fn settle(
         peak,
         relative_peak: 1.0,
         residual_speed: surface.solver.points.max_speed() / peak.max(f32::MIN_POSITIVE),
+        springs_over_membrane: springs_over_membrane(
+            network,
+            kind,
+            &surface.solver.points.positions(),
+        ),
     })
+}
+
+/// The stretch springs' energy at `positions` over a membrane's of the sheet's stretch
+/// modulus on the network's triangles (see [`Row::springs_over_membrane`]).
+fn springs_over_membrane(network: &SpringNetwork, kind: Material, positions: &[Vec3]) -> f32 {
+    let springs = kind.material().springs(network);
+    let stretch: f64 = springs[..network.stretch.len()]
+        .iter()
+        .map(|s| {
+            let length = positions[s.b as usize].distance(positions[s.a as usize]);
+            0.5 * f64::from(s.stiffness) * f64::from(length - s.rest_length).powi(2)
+        })
+        .sum();
+    let membrane = membrane_energy(
+        &network.triangles,
+        &network.positions,
+        positions,
+        sheet_material().stretch_stiffness,
+        LATTICE_POISSON_RATIO,
+    );
+    (stretch / membrane) as f32
 }
 
 /// Pins and loads a prepared surface: the sheet and the hat at their rims (the network's
