@@ -7,11 +7,12 @@ use std::ops::ControlFlow;
 
 use bevy_point_springs::core::PointCloud;
 use bevy_point_springs::core::cloud::io::read_cloud;
-use bevy_point_springs::core::cloud::shapes::{fibonacci_sphere, square_sheet};
+use bevy_point_springs::core::cloud::shapes::{fibonacci_sphere, hat, square_sheet};
 use bevy_point_springs::core::network::{NetworkError, dense_point_areas};
 use bevy_point_springs::core::normals::{DEFAULT_NORMAL_K, ensure_normals};
 use bevy_point_springs::core::pipeline::{PreparedSurface, SurfaceConfig, prepare_surface};
 use bevy_point_springs::core::simplify::{DEFAULT_SIMPLIFY_K, SimplifyConfig};
+use bevy_point_springs::core::solver::membrane::{LATTICE_POISSON_RATIO, membrane_energy};
 use bevy_point_springs::core::solver::{
     BendingModel, DampingModel, Integrator, MaterialUnits, Solver, SolverConfig, SpringMaterial,
 };
@@ -192,6 +193,55 @@ fn a_sheets_modulus_gives_a_regular_lattice_that_modulus() {
             .iter()
             .all(|p| p.stiffness == modulus)
     );
+}
+
+#[test]
+fn a_sheets_springs_and_couplings_are_the_membrane_on_an_uneven_network() {
+    // The hat at 40 % of its points: §3 leaves uneven triangles, on which no spring
+    // stiffness alone is the membrane (docs/PERFORMANCE.md, "Why the hat does not converge").
+    let cloud = hat(3000, 1.0, -0.2);
+    let material = SpringMaterial {
+        density: RHO,
+        units: MaterialUnits::Sheet,
+        stretch_stiffness: 70.0,
+        bending: BendingModel::Hinges,
+        ..SpringMaterial::default()
+    };
+    let config = SurfaceConfig {
+        simplify: SimplifyConfig::target(1200),
+        material,
+        ..SurfaceConfig::default()
+    };
+    let mut s = prepare_surface(cloud, &config, &mut |_| ControlFlow::Continue(())).unwrap();
+    let network = &s.network;
+    assert_eq!(network.report.fallback_springs, 0);
+    let couplings = material.couplings(network);
+    assert_eq!(couplings.len(), network.triangles.len());
+    // Smooth deflections, in and out of the surface.
+    let fields: [fn(Vec3) -> Vec3; 3] = [
+        |p| Vec3::Y * 0.01 * (1.0 - p.x * p.x - p.z * p.z),
+        |p| Vec3::new(p.z, 0.0, p.x) * 0.005 * (1.5 * p.y).cos(),
+        |p| Vec3::new((2.0 * p.z).sin(), 0.3 * p.x, (1.7 * p.x).cos()) * 0.004,
+    ];
+    for (f, field) in fields.iter().enumerate() {
+        let moved: Vec<Vec3> = network.positions.iter().map(|&p| p + field(p)).collect();
+        for (i, &p) in moved.iter().enumerate() {
+            s.solver.points.set_position(i, p).unwrap();
+        }
+        let springs = s.solver.energy().spring;
+        let membrane = membrane_energy(
+            &network.triangles,
+            &network.positions,
+            &moved,
+            70.0,
+            LATTICE_POISSON_RATIO,
+        );
+        // Only the length changes' second order terms differ (strains below 1 %).
+        assert!(
+            (springs / membrane - 1.0).abs() < 0.01,
+            "field {f}: springs {springs} against the membrane's {membrane}"
+        );
+    }
 }
 
 /// Radius of the tube [`measured_modulus`] pulls, m.

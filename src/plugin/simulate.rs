@@ -105,7 +105,8 @@ pub(crate) fn drive_timelines(
     }
 }
 
-/// A changed material sets the stiffness, damping and plasticity of every spring.
+/// A changed material sets the stiffness, damping and plasticity of every spring, and the
+/// couplings of a sheet's membrane.
 pub(crate) fn apply_materials(
     mut surfaces: Query<
         (
@@ -138,6 +139,7 @@ pub(crate) fn apply_materials(
             .and_then(|()| {
                 springs.set_hinge_parameters(|i| [rest[i], hinges[i].stiffness, hinges[i].damping])
             })
+            .and_then(|()| springs.set_couplings(&material.couplings(network)))
             .and_then(|()| springs.set_plasticity(material.plasticity()));
         if let Err(e) = applied {
             // Refused: the springs keep their old parameters and the surface runs on.

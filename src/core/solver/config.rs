@@ -3,6 +3,8 @@
 
 use glam::Vec3;
 
+use super::membrane::{LATTICE_POISSON_RATIO, TRIANGLE_EDGES, triangle_stiffness};
+
 use super::*;
 
 /// How a solver advances time.
@@ -248,11 +250,14 @@ pub enum MaterialUnits {
     PerSpring,
     /// A sheet's, so that a coarse and a fine network of one surface model the same sheet:
     /// - `stretch_stiffness` is the sheet's Young's modulus (force per unit width per unit
-    ///   strain, N/m). A spring of rest length L standing for the area A gets
-    ///   k = 3·modulus·A/L², A being an equal share of each end's area (its mass over the
-    ///   density) among that end's springs of the kind; on a regular triangle lattice this
-    ///   gives the sheet exactly that modulus (with Poisson's ratio 1/3, the only one a
-    ///   lattice of central springs has).
+    ///   strain, N/m), with Poisson's ratio 1/3 (the only one a regular lattice of central
+    ///   springs has). The network's triangles are a constant-strain membrane of it on any
+    ///   triangulation: each stretch spring gets the diagonal of its triangles' stiffness
+    ///   over their edges' length changes, and [`SpringMaterial::couplings`] the rest
+    ///   (see [`membrane`](super::membrane)); on a regular lattice the couplings vanish and
+    ///   k = √3/2·modulus. A stretch spring on no triangle gets k = 3·modulus·A/L², A an
+    ///   equal share of each end's area (its mass over the density) among that end's
+    ///   springs of the kind.
     /// - `bend_stiffness` is converted the same way: the modulus the bend springs alone
     ///   would give the sheet in its plane. They resist folding only through the change of
     ///   their length, so it is not a plate's flexural rigidity (`bench convergence`
@@ -450,11 +455,22 @@ impl SpringMaterial {
                         degree[s.a as usize] += 1;
                         degree[s.b as usize] += 1;
                     }
-                    out.extend(springs.iter().map(|s| {
+                    // The stretch springs on triangles: the membrane's diagonal.
+                    let membrane = if std::ptr::eq(springs, &network.stretch) {
+                        self.membrane(network).0
+                    } else {
+                        Vec::new()
+                    };
+                    out.extend(springs.iter().enumerate().map(|(i, s)| {
                         let (a, b) = (s.a as usize, s.b as usize);
                         let share = areas[a] / degree[a] as f32 + areas[b] / degree[b] as f32;
-                        let k = SHEET_LATTICE_FACTOR * modulus * share
-                            / (s.rest_length * s.rest_length);
+                        let k = match membrane.get(i) {
+                            Some(&k) if k.is_finite() => k,
+                            _ => {
+                                SHEET_LATTICE_FACTOR * modulus * share
+                                    / (s.rest_length * s.rest_length)
+                            }
+                        };
                         let (ma, mb) = (network.masses[a], network.masses[b]);
                         let reduced = ma * mb / (ma + mb);
                         spec(s, (k, ratio * 2.0 * (k * reduced).sqrt()))
@@ -463,6 +479,61 @@ impl SpringMaterial {
                 out
             }
         }
+    }
+}
+
+impl SpringMaterial {
+    /// The couplings between the stretch springs of each of the network's triangles that
+    /// make them, with their stiffness from [`Self::springs`], a constant-strain membrane of
+    /// the sheet's modulus (Poisson's ratio [`LATTICE_POISSON_RATIO`]; see
+    /// [`CouplingSpec`]): with [`MaterialUnits::Sheet`], none per spring. Springs are named
+    /// by their index in [`Self::springs`]. A triangle of (almost) no area, or one with an
+    /// edge that has no stretch spring, carries none.
+    pub fn couplings(&self, network: &SpringNetwork) -> Vec<CouplingSpec> {
+        match self.units {
+            MaterialUnits::PerSpring => Vec::new(),
+            MaterialUnits::Sheet => self.membrane(network).1,
+        }
+    }
+
+    /// The membrane on the network's triangles: each stretch spring's stiffness, the sum
+    /// of its triangles' diagonal entries (NaN for a spring on no triangle), and the
+    /// triangles' couplings.
+    fn membrane(&self, network: &SpringNetwork) -> (Vec<f32>, Vec<CouplingSpec>) {
+        use std::collections::HashMap;
+        let key = |a: u32, b: u32| (a.min(b), a.max(b));
+        let index: HashMap<(u32, u32), u32> = network
+            .stretch
+            .iter()
+            .enumerate()
+            .map(|(i, s)| (key(s.a, s.b), i as u32))
+            .collect();
+        let mut k = vec![f32::NAN; network.stretch.len()];
+        let mut couplings = Vec::new();
+        for t in &network.triangles {
+            let Some(springs) = TRIANGLE_EDGES
+                .iter()
+                .map(|&(i, j)| index.get(&key(t[i], t[j])).copied())
+                .collect::<Option<Vec<u32>>>()
+            else {
+                continue;
+            };
+            let corners = t.map(|i| network.positions[i as usize]);
+            let Some(form) =
+                triangle_stiffness(corners, self.stretch_stiffness, LATTICE_POISSON_RATIO)
+            else {
+                continue;
+            };
+            for (e, &s) in springs.iter().enumerate() {
+                let entry = &mut k[s as usize];
+                *entry = if entry.is_nan() { 0.0 } else { *entry } + form[e][e];
+            }
+            couplings.push(CouplingSpec {
+                springs: [springs[0], springs[1], springs[2]],
+                coupling: [form[0][1], form[1][2], form[2][0]],
+            });
+        }
+        (k, couplings)
     }
 }
 

@@ -27,7 +27,7 @@
 
 use glam::{DMat3, DVec3};
 
-use super::parts::{ExternalForces, HingeBlock, PointState, Springs};
+use super::parts::{CouplingBlock, ExternalForces, HingeBlock, PointState, Springs};
 use super::springs::COINCIDENT_DISTANCE;
 use super::stepper::{Model, Stepper};
 use super::{DampingModel, SolverConfig};
@@ -55,6 +55,18 @@ impl Sym3 {
             yy: s,
             zz: s,
             ..Self::default()
+        }
+    }
+
+    /// s·(uwᵀ + wuᵀ).
+    fn symmetric_outer(u: DVec3, w: DVec3, s: f64) -> Self {
+        Self {
+            xx: 2.0 * s * u.x * w.x,
+            yy: 2.0 * s * u.y * w.y,
+            zz: 2.0 * s * u.z * w.z,
+            xy: s * (u.x * w.y + u.y * w.x),
+            xz: s * (u.x * w.z + u.z * w.x),
+            yz: s * (u.y * w.z + u.z * w.y),
         }
     }
 
@@ -162,6 +174,8 @@ pub(crate) struct Scratch {
     gas: Vec<DVec3>,
     /// Each hinge's gradient and scale.
     hinges: Vec<HingeBlock>,
+    /// Each coupled triangle's edge directions and scaled couplings.
+    couplings: Vec<CouplingBlock>,
     /// Each point's contact normal while a contact holds it in the solve (zero: free).
     normal: Vec<DVec3>,
     /// Whether a contact held each point at the end of the last step (the next step's
@@ -268,6 +282,8 @@ struct System<'a> {
     gas_scale: f64,
     hinges: &'a [HingeBlock],
     hinge_ends: &'a [[u32; 4]],
+    couplings: &'a [CouplingBlock],
+    coupling_springs: &'a [[u32; 3]],
 }
 
 impl System<'_> {
@@ -285,6 +301,16 @@ impl System<'_> {
             let w = c.mul(p[a] - p[b]);
             y[a] += w;
             y[b] -= w;
+        }
+        for (block, springs) in self.couplings.iter().zip(self.coupling_springs) {
+            // h²·JᵀCJ·p over the triangle's three edges.
+            let ends = springs.map(|s| (a_end[s as usize] as usize, b_end[s as usize] as usize));
+            let rates = [0, 1, 2].map(|i| block.u[i].dot(p[ends[i].0] - p[ends[i].1]));
+            let w = block.weights(rates);
+            for ((u, (a, b)), w) in block.u.iter().zip(ends).zip(w) {
+                y[a] += w * *u;
+                y[b] -= w * *u;
+            }
         }
         for (block, ends) in self.hinges.iter().zip(self.hinge_ends) {
             // s·∇θ(∇θ·p) on the hinge's four points.
@@ -455,6 +481,22 @@ fn assemble(
         s.rhs[a] += kdv;
         s.rhs[b] -= kdv;
     }
+    // The couplings: h²·JᵀCJ in the matrix (its diagonal blocks at the corner each pair of
+    // edges shares), and −h²·JᵀCJ·v₀ on the right-hand side.
+    let couplings = &model.springs.couplings;
+    couplings.linearised(layout, points, h, &mut s.couplings);
+    for (block, ends) in s.couplings.iter().zip(couplings.ends(layout)) {
+        let rates = [0, 1, 2].map(|i| block.u[i].dot(vel(ends[i][0]) - vel(ends[i][1])));
+        let w = block.weights(rates);
+        for ((u, [a, b]), w) in block.u.iter().zip(ends).zip(w) {
+            s.rhs[a] -= w * *u;
+            s.rhs[b] += w * *u;
+        }
+        for (i, j, c, [sign_i, sign_j], corner) in block.corners(ends) {
+            let outer = Sym3::symmetric_outer(block.u[i], block.u[j], c * sign_i * sign_j);
+            diag[corner] = diag[corner].add(outer);
+        }
+    }
     // The gas: h²c·ggᵀ in the matrix (its diagonal blocks in the preconditioner too), and
     // its part of h²·∂f/∂x·v₀ on the right-hand side.
     let gas_scale = match model.pressure {
@@ -608,6 +650,7 @@ fn conjugate_gradient(
     let fixed = std::mem::take(&mut s.fixed);
     let gas = std::mem::take(&mut s.gas);
     let hinges = std::mem::take(&mut s.hinges);
+    let couplings = std::mem::take(&mut s.couplings);
     let layout = &springs.layout;
     let system = System {
         own: &own,
@@ -619,6 +662,8 @@ fn conjugate_gradient(
         gas_scale,
         hinges: &hinges,
         hinge_ends: &springs.hinges.ends,
+        couplings: &couplings,
+        coupling_springs: &springs.couplings.springs,
     };
     s.sweeps.invalidate();
     let outcome = if contacts.is_empty() {
@@ -632,6 +677,7 @@ fn conjugate_gradient(
     s.fixed = fixed;
     s.gas = gas;
     s.hinges = hinges;
+    s.couplings = couplings;
     outcome
 }
 
@@ -756,19 +802,21 @@ mod tests {
     use crate::core::solver::parts::{
         Anchors, HingeGeometry, HingeSpec, Hinges, Masses, Pressure, Springs,
     };
-    use crate::core::solver::{Anchor, SpringSpec};
+    use crate::core::solver::{Anchor, CouplingSpec, SpringSpec};
 
     /// The dense 3n×3n matrix of implicit Euler's step written out from its definition
     /// (M + h·μ·M, anchors, h·D + h²·K of each spring on its two ends and negated between
     /// them (D = k_d·I, or k_d·ûûᵀ along the spring), the gas's h²c·ggᵀ, each hinge's
-    /// (h·c + h²·2k)·∇θ∇θᵀ; fixed rows and columns zero), entry (3i + r, 3j + c).
+    /// (h·c + h²·2k)·∇θ∇θᵀ, with `couplings` each coupling's h²·Cᵢⱼ·(gᵢgⱼᵀ + gⱼgᵢᵀ) (gᵢ:
+    /// edge i's direction on its a end, negated on its b end); fixed rows and columns zero),
+    /// entry (3i + r, 3j + c).
     fn reference_matrix(
         points: &PointState,
         model: Model<'_>,
         config: &SolverConfig,
         h: f64,
-        gas: &[DVec3],
-        gas_scale: f64,
+        (gas, gas_scale): (&[DVec3], f64),
+        couplings: Coupled,
     ) -> Vec<Vec<f64>> {
         let n = points.len();
         let mut m = vec![vec![0.0; 3 * n]; 3 * n];
@@ -829,6 +877,39 @@ mod tests {
                 }
             }
         }
+        let specs: Vec<SpringSpec> = {
+            let mut by_index = vec![None; model.springs.len()];
+            for (i, spec) in model.springs.iter() {
+                by_index[i] = Some(spec);
+            }
+            by_index.into_iter().map(Option::unwrap).collect()
+        };
+        for coupling in model
+            .springs
+            .couplings()
+            .iter()
+            .filter(|_| couplings != Coupled::Not)
+        {
+            let edge = |e: usize| {
+                let s = specs[coupling.springs[e] as usize];
+                let d = (points.position(s.b as usize) - points.position(s.a as usize)).as_dvec3();
+                (s.a as usize, s.b as usize, d.normalize())
+            };
+            for (&(i, j), &c) in [(0, 1), (1, 2), (2, 0)].iter().zip(&coupling.coupling) {
+                let ((ai, bi, ui), (aj, bj, uj)) = (edge(i), edge(j));
+                let c = h * h * f64::from(c);
+                for (p, sp, u, q, sq, w) in [
+                    (ai, 1.0, ui, aj, 1.0, uj),
+                    (bi, -1.0, ui, aj, 1.0, uj),
+                    (ai, 1.0, ui, bj, -1.0, uj),
+                    (bi, -1.0, ui, bj, -1.0, uj),
+                ] {
+                    let block = DMat3::from_cols(u * w.x, u * w.y, u * w.z);
+                    add(p, q, block, c * sp * sq);
+                    add(q, p, block.transpose(), c * sp * sq);
+                }
+            }
+        }
         for i in (0..n).filter(|&i| model.masses.inv_mass[i] == 0.0) {
             for k in 0..3 * n {
                 m[3 * i..3 * i + 3].iter_mut().for_each(|row| row[k] = 0.0);
@@ -836,6 +917,13 @@ mod tests {
             }
         }
         m
+    }
+
+    /// Which of the couplings' entries [`reference_matrix`] writes.
+    #[derive(Clone, Copy, PartialEq)]
+    enum Coupled {
+        Not,
+        All,
     }
 
     #[test]
@@ -891,6 +979,19 @@ mod tests {
             hinge([2, 3], [1, 4], -0.2, 9.0),
         ];
         springs.set_hinges(Hinges::new(&hinges, &x).unwrap());
+        // Couplings of both signs on the triangles (1, 2, 3) and (2, 3, 4).
+        springs
+            .set_couplings(&[
+                CouplingSpec {
+                    springs: [3, 5, 4],
+                    coupling: [40.0, -30.0, 25.0],
+                },
+                CouplingSpec {
+                    springs: [5, 6, 7],
+                    coupling: [-20.0, 15.0, 35.0],
+                },
+            ])
+            .unwrap();
         let mut masses = Masses::new(&[0.5, 1.0, 2.0, 0.7, 0.3]).unwrap();
         masses.set_pinned(0, true).unwrap();
         let mut anchors = Anchors::default();
@@ -942,8 +1043,13 @@ mod tests {
                 gas_scale,
                 hinges: &s.hinges,
                 hinge_ends: &springs.hinges.ends,
+                couplings: &s.couplings,
+                coupling_springs: &springs.couplings.springs,
             };
-            let reference = reference_matrix(&points, model, &config, h, &s.gas, gas_scale);
+            let gas = (s.gas.as_slice(), gas_scale);
+            let reference = reference_matrix(&points, model, &config, h, gas, Coupled::All);
+            // The preconditioner has the whole matrix's blocks.
+            let preconditioned = &reference;
             let n = x.len();
             // Column by column: A·e_k against the written-out matrix.
             for k in (0..3 * n).filter(|k| k / 3 != 0) {
@@ -965,10 +1071,45 @@ mod tests {
                     }
                 }
             }
+            // The right-hand side h·(f₀ + h·∂f/∂x·v₀) depends on v₀ as −(A − M)·v₀ does (the
+            // damping in f₀, the stiffness in the second term): against the same state at rest.
+            let mut still = points.clone();
+            for i in 0..n {
+                still.set_velocity(i, Vec3::ZERO).unwrap();
+            }
+            let mut at_rest = Stepper::new(config, n).unwrap();
+            at_rest.accumulate_forces(&still, model).unwrap();
+            let mut s0 = Scratch::default();
+            s0.resize(n, springs.len());
+            let forces0 = Forces {
+                fa: &at_rest.fa,
+                fb: &at_rest.fb,
+                hinge_gradients: &at_rest.hinge_gradients,
+            };
+            assemble(&mut s0, forces0, &still, model, &config, h);
+            for i in 1..n {
+                for r in 0..3 {
+                    let row = 3 * i + r;
+                    let mass = f64::from(model.masses.mass[i]);
+                    let av: f64 = (0..3 * n)
+                        .map(|c| {
+                            let m = if c == row { mass } else { 0.0 };
+                            (reference[row][c] - m) * f64::from(points.velocity(c / 3)[c % 3])
+                        })
+                        .sum();
+                    let change = s.rhs[i][r] - s0.rhs[i][r];
+                    assert!(
+                        // f₀ is summed in f32.
+                        (change + av).abs() < 1e-4 * (1.0 + av.abs()),
+                        "{damping_model:?} row {row}: {change} against {}",
+                        -av
+                    );
+                }
+            }
             // The preconditioner inverts the written-out diagonal blocks.
             for i in 1..n {
                 let block = DMat3::from_cols_array_2d(
-                    &[0, 1, 2].map(|c| [0, 1, 2].map(|r| reference[3 * i + r][3 * i + c])),
+                    &[0, 1, 2].map(|c| [0, 1, 2].map(|r| preconditioned[3 * i + r][3 * i + c])),
                 );
                 let back = block
                     * DMat3::from_cols_array_2d(&[0, 1, 2].map(|c| {
@@ -980,7 +1121,7 @@ mod tests {
             // The preconditioner is (D + L)·D⁻¹·(D + Lᵀ) of the written-out matrix: D its
             // diagonal blocks (the gas's included), L its strictly lower blocks without the
             // gas's dense term. Checked on the free points' rows: (D + L)·D⁻¹·(D + Lᵀ)·z = r.
-            let sparse = reference_matrix(&points, model, &config, h, &s.gas, 0.0);
+            let sparse = reference_matrix(&points, model, &config, h, (&s.gas, 0.0), Coupled::All);
             s.sweeps.assemble(n, &system);
             let r: Vec<DVec3> = (0..n)
                 .map(|i| DVec3::new(1.0 + i as f64, -0.5 * i as f64, 0.25))
@@ -998,13 +1139,13 @@ mod tests {
             let w: Vec<DVec3> = (0..n)
                 .map(|i| {
                     let upper: DVec3 = (i + 1..n).map(|j| block(&sparse, i, j) * z[j]).sum();
-                    block(&reference, i, i) * z[i] + upper
+                    block(preconditioned, i, i) * z[i] + upper
                 })
                 .collect();
             let u: Vec<DVec3> = (0..n).map(|i| s.diag_inv[i].mul(w[i])).collect();
             for i in 1..n {
                 let lower: DVec3 = (1..i).map(|j| block(&sparse, i, j) * u[j]).sum();
-                let back = block(&reference, i, i) * u[i] + lower;
+                let back = block(preconditioned, i, i) * u[i] + lower;
                 assert!(
                     (back - r[i]).length() < 1e-9 * r[i].length(),
                     "{i}: {back} vs {}",

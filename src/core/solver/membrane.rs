@@ -12,9 +12,13 @@
 //! k = √3·E/2: [`SHEET_LATTICE_FACTOR`](super::SHEET_LATTICE_FACTOR)'s relation). On the
 //! irregular triangles that §3 leaves, K has off-diagonal entries as large as its diagonal,
 //! which no choice of spring stiffness can stand for: measured on the hat at 40–50 % of its
-//! points, the default sheet springs are 14–18 % stiffer than the membrane they claim to be
+//! points, sheet springs alone were 14–18 % stiffer than the membrane they claimed to be
 //! for one smooth deflection, and 8 % softer at full resolution (docs/PERFORMANCE.md,
-//! "Why the hat does not converge").
+//! "Why the hat does not converge"). So a sheet's material
+//! ([`MaterialUnits::Sheet`](super::MaterialUnits::Sheet)) puts the diagonal into the
+//! springs and the rest into couplings between a triangle's edges
+//! ([`SpringMaterial::couplings`](super::SpringMaterial::couplings)): together they are
+//! this membrane on any triangulation.
 
 use glam::{DMat3, DVec3, Vec3};
 

@@ -4,7 +4,8 @@
 //! forces (each as separate x, y, z arrays), masses and inverse masses — and its springs as
 //! index pairs with rest length, stiffness and damping (see [`SpringSpec`]).
 //!
-//! **Forces.** Hooke springs (eq 2); spring damping on the full relative velocity (eq 3,
+//! **Forces.** Hooke springs (eq 2), coupled within each triangle where they are a sheet's
+//! membrane ([`CouplingSpec`]); spring damping on the full relative velocity (eq 3,
 //! [`DampingModel::Relative`]) or along the spring ([`DampingModel::Axial`], the form of the
 //! common cloth benchmarks); gravity (eq 4) as m·g on every free point; anchor springs to world
 //! points (eq 5: pins, pokes and drags, added, moved and removed while running, see
@@ -96,8 +97,8 @@ pub use config::{
 };
 use parts::non_negative;
 pub use parts::{
-    Anchors, DEGENERATE_HEIGHT, ExternalForces, HingeGeometry, HingeSpec, Hinges, Masses,
-    PointState, Pressure, Springs, angle_difference, hold_still,
+    Anchors, CouplingSpec, DEGENERATE_HEIGHT, ExternalForces, HingeGeometry, HingeSpec, Hinges,
+    Masses, PointState, Pressure, Springs, angle_difference, hold_still,
 };
 pub use report::{Diagnostics, Energy, Instability, SolverError, Stability, StepReport};
 pub use springs::{COINCIDENT_DISTANCE, SpringSpec};
@@ -243,8 +244,9 @@ impl Solver {
     }
 
     /// A solver over a [`SpringNetwork`]: its rest positions and masses, and the springs and
-    /// hinges of the material's bending model with its stiffness and damping
-    /// ([`SpringMaterial::springs`], [`SpringMaterial::hinges`]).
+    /// hinges of the material's bending model with its stiffness and damping, and the
+    /// couplings of a sheet's membrane ([`SpringMaterial::springs`],
+    /// [`SpringMaterial::hinges`], [`SpringMaterial::couplings`]).
     pub fn from_network(
         network: &SpringNetwork,
         material: &SpringMaterial,
@@ -260,6 +262,10 @@ impl Solver {
         let hinges = material.hinges(network);
         if !hinges.is_empty() {
             solver.set_hinges(&hinges)?;
+        }
+        let couplings = material.couplings(network);
+        if !couplings.is_empty() {
+            solver.springs.set_couplings(&couplings)?;
         }
         Ok(solver)
     }

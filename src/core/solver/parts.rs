@@ -12,10 +12,13 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use glam::Vec3;
 
 mod anchors;
+mod couplings;
 mod hinges;
 mod pressure;
 
 pub use anchors::Anchors;
+pub use couplings::CouplingSpec;
+pub(crate) use couplings::{COUPLED_PAIRS, CouplingBlock, Couplings};
 pub(crate) use hinges::HingeBlock;
 pub use hinges::{DEGENERATE_HEIGHT, HingeGeometry, HingeSpec, Hinges, angle_difference};
 pub use pressure::Pressure;
@@ -323,13 +326,15 @@ pub fn hold_still(
 
 /// The springs (eq 2–3), stored in the order the force kernels want (see the `springs`
 /// module); [`Springs::iter`] gives them back. They hold the surface's [`Hinges`] too (none
-/// unless set), so that bending goes wherever the springs go.
+/// unless set), so that bending goes wherever the springs go, and the couplings that make
+/// their stretch springs a membrane (none unless set; see [`CouplingSpec`]).
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Springs {
     pub(crate) layout: SpringLayout,
     pub(crate) revision: u64,
     plasticity: Plasticity,
     pub(crate) hinges: Hinges,
+    pub(crate) couplings: Couplings,
 }
 
 impl Springs {
@@ -364,7 +369,22 @@ impl Springs {
             revision: next_revision(),
             plasticity: Plasticity::ELASTIC,
             hinges: Hinges::default(),
+            couplings: Couplings::default(),
         })
+    }
+
+    /// The couplings between the edge springs of each triangle (none unless set), their
+    /// springs named by the index they were given at.
+    pub fn couplings(&self) -> Vec<CouplingSpec> {
+        self.couplings.iter(&self.layout).collect()
+    }
+
+    /// Replaces the couplings (refused, nothing changed, when a triangle's springs are not
+    /// three distinct springs of these or a coupling is not finite).
+    pub fn set_couplings(&mut self, couplings: &[CouplingSpec]) -> Result<(), SolverError> {
+        self.couplings = Couplings::new(couplings, &self.layout)?;
+        self.revision = next_revision();
+        Ok(())
     }
 
     /// The hinges (bending; none unless set).
@@ -471,10 +491,10 @@ impl Springs {
             .collect()
     }
 
-    /// Potential energy ½k(|l| − l⁰)² of the springs at `points` (the hinges' is
-    /// [`Hinges::energy`]).
+    /// Potential energy ½k(|l| − l⁰)² of the springs at `points`, with their couplings'
+    /// (the hinges' is [`Hinges::energy`]).
     pub fn energy(&self, points: &PointState) -> f64 {
-        self.layout.energy(&points.x)
+        self.layout.energy(&points.x) + self.couplings.energy(&self.layout, points)
     }
 
     /// Sets every spring's rest length from its index (`of(index)`, finite and not

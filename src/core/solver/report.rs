@@ -91,6 +91,15 @@ pub enum SolverError {
         /// What is wrong.
         what: &'static str,
     },
+    /// A triangle's coupling names springs that are not three distinct ones of the surface,
+    /// or a coupling that is not finite.
+    #[error("coupling of triangle {triangle}: {what}")]
+    InvalidCoupling {
+        /// The triangle's index among the couplings.
+        triangle: usize,
+        /// What is wrong.
+        what: &'static str,
+    },
     /// An anchor's stiffness or damping is negative or not finite, or its target not finite.
     #[error("anchor on point {point}: {what} must be finite (and not negative)")]
     InvalidAnchor {

@@ -253,6 +253,10 @@ impl Stepper {
             .springs
             .hinges
             .accumulate(points, &mut self.fa, &mut self.hinge_gradients);
+        model
+            .springs
+            .couplings
+            .accumulate(layout, points, &mut self.fa);
         for a in model.anchors.live() {
             let i = a.point as usize;
             let f = a.stiffness * (a.target - points.x.get(i)) - a.damping * points.v.get(i);
@@ -658,6 +662,7 @@ fn estimate_stability(config: &SolverConfig, model: Model<'_>) -> Stability {
         }
     }
     ratio = ratio.min(model.springs.hinges.stability_rows(&mut stiff, &mut damp));
+    model.springs.couplings.stability_rows(layout, &mut stiff);
     for a in model.anchors.live() {
         let i = a.point as usize;
         stiff[i] += f64::from(a.stiffness);

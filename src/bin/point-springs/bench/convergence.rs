@@ -24,7 +24,7 @@ use bevy_point_springs::core::simplify::SimplifyConfig;
 use bevy_point_springs::core::solver::membrane::{LATTICE_POISSON_RATIO, membrane_energy};
 use bevy_point_springs::core::solver::{
     BendingModel, DEFAULT_BENDING_DAMPING, DEFAULT_YIELD_ANGLE, Integrator, MaterialUnits,
-    SolverConfig, SpringMaterial,
+    PointState, SolverConfig, SpringMaterial, Springs,
 };
 use glam::Vec3;
 use serde::Serialize;
@@ -215,10 +215,11 @@ struct Row {
     relative_peak: f32,
     /// The largest speed at the end, over `peak` per second: small when settled.
     residual_speed: f32,
-    /// The stretch springs' energy at the end over a constant-strain membrane's on the same
-    /// triangles for the same displacement (the sheet's stretch modulus, Poisson's ratio
-    /// 1/3; see `membrane`): 1 where the springs are the membrane they stand for, above 1
-    /// where they are stiffer.
+    /// The stretch springs' energy at the end, with their couplings (a sheet's), over a
+    /// constant-strain membrane's on the same triangles for the same displacement (the
+    /// sheet's stretch modulus, Poisson's ratio 1/3; see `membrane`): 1 where the springs
+    /// are the membrane they stand for (a sheet's), other where they are not (the paper's,
+    /// per spring).
     springs_over_membrane: f32,
 }
 
@@ -397,21 +398,26 @@ fn settle(
             network,
             kind,
             &surface.solver.points.positions(),
-        ),
+        )?,
     })
 }
 
-/// The stretch springs' energy at `positions` over a membrane's of the sheet's stretch
-/// modulus on the network's triangles (see [`Row::springs_over_membrane`]).
-fn springs_over_membrane(network: &SpringNetwork, kind: Material, positions: &[Vec3]) -> f32 {
-    let springs = kind.material().springs(network);
-    let stretch: f64 = springs[..network.stretch.len()]
-        .iter()
-        .map(|s| {
-            let length = positions[s.b as usize].distance(positions[s.a as usize]);
-            0.5 * f64::from(s.stiffness) * f64::from(length - s.rest_length).powi(2)
-        })
-        .sum();
+/// The stretch springs' energy at `positions`, with their couplings, over a membrane's of
+/// the sheet's stretch modulus on the network's triangles (see
+/// [`Row::springs_over_membrane`]).
+fn springs_over_membrane(
+    network: &SpringNetwork,
+    kind: Material,
+    positions: &[Vec3],
+) -> Result<f32, Failure> {
+    let material = kind.material();
+    let specs = material.springs(network);
+    let mut stretch =
+        Springs::new(&specs[..network.stretch.len()], network.len()).map_err(Failure::other)?;
+    stretch
+        .set_couplings(&material.couplings(network))
+        .map_err(Failure::other)?;
+    let points = PointState::new(positions).map_err(Failure::other)?;
     let membrane = membrane_energy(
         &network.triangles,
         &network.positions,
@@ -419,7 +425,7 @@ fn springs_over_membrane(network: &SpringNetwork, kind: Material, positions: &[V
         sheet_material().stretch_stiffness,
         LATTICE_POISSON_RATIO,
     );
-    (stretch / membrane) as f32
+    Ok((stretch.energy(&points) / membrane) as f32)
 }
 
 /// Pins and loads a prepared surface: the sheet and the hat at their rims (the network's

@@ -6,7 +6,8 @@
 //!
 //! with D the points' 3×3 diagonal blocks and L the strictly lower 3×3 blocks of the step's
 //! sparse matrix (the springs' −C between their ends, each hinge's s·∇ᵢθ∇ⱼθᵀ between its
-//! corners; the gas's dense rank-one term only on the diagonal). One forward and one
+//! corners, each coupled triangle's h²·Cᵢⱼ·(±uᵢ)(±uⱼ)ᵀ between its corners, on its edges'
+//! blocks; the gas's dense rank-one term only on the diagonal). One forward and one
 //! backward sweep over the blocks, in point order, so the result does not depend on threads.
 //! P is symmetric positive definite whenever D is, which any step's matrix gives.
 //!
@@ -21,6 +22,7 @@
 use glam::{DMat3, DVec3};
 
 use super::{Sym3, System};
+use crate::core::solver::parts::COUPLED_PAIRS;
 
 /// The pairs of corners (j, m), j < m, of a hinge: each couples its two points.
 const HINGE_PAIRS: [(usize, usize); 6] = [(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)];
@@ -145,6 +147,36 @@ impl GaussSeidel {
                 let g = hinge.gradient[row] * hinge.scale;
                 let c = hinge.gradient[col];
                 self.block[slot as usize] += DMat3::from_cols(g * c.x, g * c.y, g * c.z);
+            }
+        }
+        self.add_couplings(system);
+    }
+
+    /// Adds the couplings' off-diagonal blocks h²·Cᵢⱼ·(±uᵢ)(±uⱼ)ᵀ between the corners of
+    /// each coupled triangle: every pair of its corners is one of its edges, whose spring's
+    /// slot holds the block.
+    fn add_couplings(&mut self, system: &System<'_>) {
+        for (coupling, springs) in system.couplings.iter().zip(system.coupling_springs) {
+            let ends = springs.map(|s| [system.a_end[s as usize], system.b_end[s as usize]]);
+            for (&(i, j), &c) in COUPLED_PAIRS.iter().zip(&coupling.scaled) {
+                for (p, sign_p) in ends[i].into_iter().zip([1.0, -1.0]) {
+                    for (q, sign_q) in ends[j].into_iter().zip([1.0, -1.0]) {
+                        let edge =
+                            (0..3).find(|&e| p != q && (ends[e] == [p, q] || ends[e] == [q, p]));
+                        let Some(edge) = edge else {
+                            continue;
+                        };
+                        // Row max, column min.
+                        let (row, col) = if p > q {
+                            (coupling.u[i], coupling.u[j])
+                        } else {
+                            (coupling.u[j], coupling.u[i])
+                        };
+                        let g = row * (c * sign_p * sign_q);
+                        let slot = self.spring_slot[springs[edge] as usize] as usize;
+                        self.block[slot] += DMat3::from_cols(g * col.x, g * col.y, g * col.z);
+                    }
+                }
             }
         }
     }
