@@ -33,6 +33,21 @@ pub struct CouplingSpec {
 /// The pairs of a triangle's edges that [`CouplingSpec::coupling`] couples, in its order.
 pub(crate) const COUPLED_PAIRS: [(usize, usize); 3] = [(0, 1), (1, 2), (2, 0)];
 
+/// C·x for the symmetric coupling matrix C with zero diagonal and the off-diagonal entries
+/// `coupling` ([`COUPLED_PAIRS`] order): each edge's share from the other two.
+#[inline]
+fn coupled<T>(coupling: [T; 3], x: [T; 3]) -> [T; 3]
+where
+    T: Copy + std::ops::Mul<Output = T> + std::ops::Add<Output = T>,
+{
+    let [c01, c12, c20] = coupling;
+    [
+        c01 * x[1] + c20 * x[2],
+        c01 * x[0] + c12 * x[2],
+        c12 * x[1] + c20 * x[0],
+    ]
+}
+
 /// The couplings of a surface (see the module docs), part of
 /// [`Springs`](super::Springs), over the springs' internal order.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -77,12 +92,7 @@ impl CouplingBlock {
     /// The block's w = h²·C·(J·p) over its three edges, J·p = uᵢ·(p_a − p_b) for each edge.
     #[inline]
     pub fn weights(&self, rates: [f64; 3]) -> [f64; 3] {
-        let [c01, c12, c20] = self.scaled;
-        [
-            c01 * rates[1] + c20 * rates[2],
-            c01 * rates[0] + c12 * rates[2],
-            c12 * rates[1] + c20 * rates[0],
-        ]
+        coupled(self.scaled, rates)
     }
 }
 
@@ -135,23 +145,13 @@ impl Couplings {
         })
     }
 
-    /// Each edge's extra tension Σⱼ Cᵢⱼ·δⱼ from the other two.
-    #[inline]
-    fn tensions(coupling: [f32; 3], d: [f32; 3]) -> [f32; 3] {
-        let [c01, c12, c20] = coupling;
-        [
-            c01 * d[1] + c20 * d[2],
-            c01 * d[0] + c12 * d[2],
-            c12 * d[1] + c20 * d[0],
-        ]
-    }
-
     /// Adds the couplings' forces at `points` to `f`: each edge pulled together by its extra
     /// tension (pushed apart where negative).
     pub(crate) fn accumulate(&self, layout: &SpringLayout, points: &PointState, f: &mut Soa3) {
         for (&springs, &coupling) in self.springs.iter().zip(&self.coupling) {
             let edges = Self::edges(layout, springs, &points.x);
-            let t = Self::tensions(coupling, edges.map(|(_, d)| d));
+            // Each edge's extra tension Σⱼ Cᵢⱼ·δⱼ from the other two.
+            let t = coupled(coupling, edges.map(|(_, d)| d));
             for ((&s, (u, _)), t) in springs.iter().zip(edges).zip(t) {
                 let (a, b) = (layout.a[s as usize] as usize, layout.b[s as usize] as usize);
                 f.set(a, f.get(a) + t * u);
