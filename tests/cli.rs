@@ -555,8 +555,8 @@ fn bench_convergence_runs_every_problem_to_equilibrium_with_every_material() {
         "--json",
     ]);
     let rows = v["rows"].as_array().expect("one row per run");
-    // Four problems, three materials, two levels (sorted, the finest last).
-    assert_eq!(rows.len(), 24);
+    // Four problems, four materials, two levels (sorted, the finest last).
+    assert_eq!(rows.len(), 32);
     for pair in rows.chunks(2) {
         let f = |r: &serde_json::Value, key: &str| r[key].as_f64().unwrap();
         assert_eq!(pair[0]["problem"], pair[1]["problem"]);
@@ -573,14 +573,16 @@ fn bench_convergence_runs_every_problem_to_equilibrium_with_every_material() {
         .map(|r| r["material"].as_str().unwrap())
         .collect();
     assert_eq!(
-        &materials[..6],
+        &materials[..8],
         [
             "per_spring",
             "per_spring",
             "sheet",
             "sheet",
             "hinges",
-            "hinges"
+            "hinges",
+            "curvature",
+            "curvature"
         ]
     );
     // The chart, twice; the SVG carries its text.
@@ -589,6 +591,7 @@ fn bench_convergence_runs_every_problem_to_equilibrium_with_every_material() {
         svg.contains("simulation points")
             && svg.contains("Shell, sheet")
             && svg.contains("Shell, hinges")
+            && svg.contains("Shell, curvature")
     );
     let png = std::fs::metadata(stem.with_extension("png")).unwrap();
     assert!(png.len() > 10_000, "{png:?}");

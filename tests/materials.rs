@@ -297,6 +297,78 @@ fn a_sheets_hat_sags_the_same_at_a_coarse_and_a_middle_level() {
     );
 }
 
+/// A 2 × 2 sheet of spacing `spacing`, simplified to `points` points (all of them: a regular
+/// lattice), pinned along its rim and settled under gravity, bending as `bending` says with a
+/// flexural rigidity heavy enough that bending carries most of the load: the mass-weighted
+/// mean sag of its points.
+fn sheet_sag(spacing: f32, points: Option<usize>, bending: BendingModel) -> f32 {
+    let material = SpringMaterial {
+        density: 0.2,
+        units: MaterialUnits::Sheet,
+        stretch_stiffness: 2.0 * 60.0 / 3f32.sqrt(),
+        stretch_damping: 0.3,
+        bending,
+        bending_modulus: 3.0,
+        ..SpringMaterial::default()
+    };
+    let cloud = square_sheet(2.0, spacing);
+    let config = SurfaceConfig {
+        simplify: SimplifyConfig::target(points.unwrap_or(cloud.len())),
+        material,
+        solver: SolverConfig {
+            integrator: Integrator::ImplicitEuler,
+            gravity: Vec3::NEG_Z * 9.81,
+            drag: 1.0,
+            ..SolverConfig::default()
+        },
+        ..SurfaceConfig::default()
+    };
+    let mut s = prepare_surface(cloud, &config, &mut |_| ControlFlow::Continue(())).unwrap();
+    let network = &s.network;
+    for (i, &rim) in network.boundary.iter().enumerate() {
+        if rim {
+            s.solver.set_fixed(i, true).unwrap();
+        }
+    }
+    for _ in 0..300 {
+        s.solver.step(1.0 / 30.0).unwrap();
+    }
+    let total: f32 = network.masses.iter().sum();
+    (0..network.len())
+        .map(|i| (network.positions[i].z - s.solver.position(i).z) * network.masses[i])
+        .sum::<f32>()
+        / total
+}
+
+/// The mean deflection of a simply supported a × a plate of flexural rigidity D under a
+/// uniform load q (Navier's double series, which does not depend on Poisson's ratio):
+/// w̄ = 64·q·a⁴/(π⁸·D)·Σ 1/(m²n²(m² + n²)²) over odd m and n.
+fn navier_mean_deflection(q: f64, a: f64, d: f64) -> f64 {
+    let mut sum = 0.0;
+    for m in (1..200).step_by(2) {
+        for n in (1..200).step_by(2) {
+            let (m, n) = (f64::from(m), f64::from(n));
+            sum += 1.0 / (m * m * n * n * (m * m + n * n).powi(2));
+        }
+    }
+    64.0 * q * a.powi(4) / (std::f64::consts::PI.powi(8) * d) * sum
+}
+
+#[test]
+fn a_plate_bending_on_its_curvature_sags_as_navier_says_on_an_uneven_network() {
+    // A lattice of spacing 0.04 simplified by §3 to an uneven network of 740 points, pinned
+    // along its rim: a simply supported plate. Hinges measure the fold where the flat
+    // triangles meet, which depends on how the mesh is cut (−14 % here, measured; −26 % at
+    // 1465 points); the fitted curvature, stabilised, does not (−1.5 %).
+    let exact = navier_mean_deflection(0.2 * 9.81, 2.0, 3.0) as f32;
+    let uneven = sheet_sag(0.04, Some(740), BendingModel::Curvature);
+    eprintln!("plate: Navier {exact:.5}, curvature on 740 uneven points {uneven:.5}");
+    assert!(
+        (uneven / exact - 1.0).abs() < 0.03,
+        "{uneven} against Navier's {exact}"
+    );
+}
+
 /// Radius of the tube [`measured_modulus`] pulls, m.
 const TUBE_RADIUS: f32 = 0.2;
 

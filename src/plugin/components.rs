@@ -370,6 +370,8 @@ pub enum BendingModelReflect {
     Springs,
     /// Hinges (discrete shells).
     Hinges,
+    /// Each point's fitted curvature.
+    Curvature,
 }
 
 /// How [`MaterialUnits`] is reflected.

@@ -122,7 +122,14 @@ pub(crate) fn apply_materials(
         let material: SpringMaterial = material.0;
         let specs = material.springs(network);
         let hinges = material.hinges(network);
-        if specs.len() != springs.len() || hinges.len() != springs.hinges().len() {
+        let curvatures = material.curvatures(network);
+        let bent = springs.curvatures();
+        let same_points = curvatures.len() == bent.len()
+            && curvatures
+                .iter()
+                .zip(&bent)
+                .all(|(a, b)| a.point == b.point);
+        if specs.len() != springs.len() || hinges.len() != springs.hinges().len() || !same_points {
             // Another bending model builds other springs: that takes a new preparation (the
             // panel sends one), until which the surface keeps its springs.
             warn!(
@@ -140,6 +147,13 @@ pub(crate) fn apply_materials(
                 springs.set_hinge_parameters(|i| [rest[i], hinges[i].stiffness, hinges[i].damping])
             })
             .and_then(|()| springs.set_couplings(&material.couplings(network)))
+            .and_then(|()| {
+                // New modulus and damping; the rest curvatures as they are (plastic flow).
+                springs.set_curvature_parameters(|i| {
+                    let [c, d, e] = bent[i].rest;
+                    [c, d, e, curvatures[i].modulus, curvatures[i].damping]
+                })
+            })
             .and_then(|()| springs.set_plasticity(material.plasticity()));
         if let Err(e) = applied {
             // Refused: the springs keep their old parameters and the surface runs on.

@@ -136,6 +136,8 @@ pub enum BendingArg {
     Springs,
     /// Hinges (discrete shells).
     Hinges,
+    /// Each point's curvature, from a quadric fitted to its neighbours.
+    Curvature,
 }
 
 impl From<BendingArg> for BendingModel {
@@ -143,6 +145,7 @@ impl From<BendingArg> for BendingModel {
         match b {
             BendingArg::Springs => Self::Springs,
             BendingArg::Hinges => Self::Hinges,
+            BendingArg::Curvature => Self::Curvature,
         }
     }
 }

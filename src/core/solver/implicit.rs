@@ -27,7 +27,9 @@
 
 use glam::{DMat3, DVec3};
 
-use super::parts::{CouplingBlock, ExternalForces, HingeBlock, PointState, Springs};
+use super::parts::{
+    CouplingBlock, CurvatureBlock, Curvatures, ExternalForces, HingeBlock, PointState, Springs,
+};
 use super::springs::COINCIDENT_DISTANCE;
 use super::stepper::{Model, Stepper};
 use super::{DampingModel, SolverConfig};
@@ -176,6 +178,10 @@ pub(crate) struct Scratch {
     hinges: Vec<HingeBlock>,
     /// Each coupled triangle's edge directions and scaled couplings.
     couplings: Vec<CouplingBlock>,
+    /// Each curvature-bending point's held normal and scale.
+    curvatures: Vec<CurvatureBlock>,
+    /// The velocities at the start of the step (curvature bending's right-hand side).
+    velocities: Vec<DVec3>,
     /// Each point's contact normal while a contact holds it in the solve (zero: free).
     normal: Vec<DVec3>,
     /// Whether a contact held each point at the end of the last step (the next step's
@@ -284,6 +290,8 @@ struct System<'a> {
     hinge_ends: &'a [[u32; 4]],
     couplings: &'a [CouplingBlock],
     coupling_springs: &'a [[u32; 3]],
+    curvatures: &'a Curvatures,
+    curvature_blocks: &'a [CurvatureBlock],
 }
 
 impl System<'_> {
@@ -312,6 +320,7 @@ impl System<'_> {
                 y[b] -= w * *u;
             }
         }
+        self.curvatures.apply(self.curvature_blocks, p, y);
         for (block, ends) in self.hinges.iter().zip(self.hinge_ends) {
             // s·∇θ(∇θ·p) on the hinge's four points.
             let ends = ends.map(|i| i as usize);
@@ -365,6 +374,7 @@ impl Stepper {
             fa: &self.fa,
             fb: &self.fb,
             hinge_gradients: &self.hinge_gradients,
+            curvature_normals: &self.curvature_normals,
         };
         let gas_scale = assemble(&mut scratch, forces, points, model, &config, h);
         let mut contacts = Contacts::new(external, points, model);
@@ -405,6 +415,7 @@ struct Forces<'a> {
     fa: &'a super::parts::Soa3,
     fb: &'a super::parts::Soa3,
     hinge_gradients: &'a [[glam::Vec3; 4]],
+    curvature_normals: &'a [glam::Vec3],
 }
 
 /// Builds the step's system in `s`: the right-hand side h·(f₀ + h·∂f/∂x·v₀) from the forces
@@ -416,6 +427,7 @@ fn assemble(
         fa,
         fb,
         hinge_gradients,
+        curvature_normals,
     }: Forces<'_>,
     points: &PointState,
     model: Model<'_>,
@@ -516,6 +528,18 @@ fn assemble(
             s.rhs[i] -= block.rhs * g;
             diag[i] = diag[i].add(Sym3::outer_plus_identity(g, block.scale, 0.0));
         }
+    }
+    // Curvature bending: scale·JᵀKJ in the matrix (its diagonal blocks too), and
+    // −h²·JᵀKJ·v₀ on the right-hand side.
+    let curvatures = &model.springs.curvatures;
+    curvatures.linearised(curvature_normals, h, &mut s.curvatures);
+    if !s.curvatures.is_empty() {
+        s.velocities.clear();
+        s.velocities.extend((0..n).map(vel));
+        curvatures.add_rhs(&s.curvatures, &s.velocities, h, &mut s.rhs);
+        curvatures.diagonal(&s.curvatures, |i, normal, scale| {
+            diag[i] = diag[i].add(Sym3::outer_plus_identity(normal, scale, 0.0));
+        });
     }
     if gas_scale > 0.0 {
         let rate: f64 = (0..n)
@@ -651,6 +675,7 @@ fn conjugate_gradient(
     let gas = std::mem::take(&mut s.gas);
     let hinges = std::mem::take(&mut s.hinges);
     let couplings = std::mem::take(&mut s.couplings);
+    let curvature_blocks = std::mem::take(&mut s.curvatures);
     let layout = &springs.layout;
     let system = System {
         own: &own,
@@ -664,6 +689,8 @@ fn conjugate_gradient(
         hinge_ends: &springs.hinges.ends,
         couplings: &couplings,
         coupling_springs: &springs.couplings.springs,
+        curvatures: &springs.curvatures,
+        curvature_blocks: &curvature_blocks,
     };
     s.sweeps.invalidate();
     let outcome = if contacts.is_empty() {
@@ -678,6 +705,7 @@ fn conjugate_gradient(
     s.gas = gas;
     s.hinges = hinges;
     s.couplings = couplings;
+    s.curvatures = curvature_blocks;
     outcome
 }
 
@@ -1030,6 +1058,7 @@ mod tests {
                 fa: &stepper.fa,
                 fb: &stepper.fb,
                 hinge_gradients: &stepper.hinge_gradients,
+                curvature_normals: &stepper.curvature_normals,
             };
             let gas_scale = assemble(&mut s, forces, &points, model, &config, h);
             assert!(gas_scale > 0.0);
@@ -1045,6 +1074,8 @@ mod tests {
                 hinge_ends: &springs.hinges.ends,
                 couplings: &s.couplings,
                 coupling_springs: &springs.couplings.springs,
+                curvatures: &springs.curvatures,
+                curvature_blocks: &s.curvatures,
             };
             let gas = (s.gas.as_slice(), gas_scale);
             let reference = reference_matrix(&points, model, &config, h, gas, Coupled::All);
@@ -1085,6 +1116,7 @@ mod tests {
                 fa: &at_rest.fa,
                 fb: &at_rest.fb,
                 hinge_gradients: &at_rest.hinge_gradients,
+                curvature_normals: &at_rest.curvature_normals,
             };
             assemble(&mut s0, forces0, &still, model, &config, h);
             for i in 1..n {

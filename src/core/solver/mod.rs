@@ -89,16 +89,18 @@ use glam::Vec3;
 use crate::core::network::SpringNetwork;
 
 pub use config::{
-    BendingModel, DEFAULT_BENDING_DAMPING, DEFAULT_BENDING_MODULUS, DEFAULT_YIELD_ANGLE,
-    DEFAULT_YIELD_STRAIN, DampingModel, HINGE_PLATE_FACTOR, HINGE_POISSON_RATIO,
-    InstabilityResponse, Integrator, MaterialUnits, Plasticity, RUNAWAY_DIAGONALS_PER_SECOND,
-    RUNAWAY_MIN_SPEED, SHEET_LATTICE_FACTOR, SolverConfig, SpringMaterial, SubstepPolicy,
-    UnknownIntegrator,
+    BendingModel, CURVATURE_POISSON_RATIO, DEFAULT_BENDING_DAMPING, DEFAULT_BENDING_MODULUS,
+    DEFAULT_YIELD_ANGLE, DEFAULT_YIELD_STRAIN, DampingModel, HINGE_PLATE_FACTOR,
+    HINGE_POISSON_RATIO, InstabilityResponse, Integrator, MaterialUnits, Plasticity,
+    RUNAWAY_DIAGONALS_PER_SECOND, RUNAWAY_MIN_SPEED, SHEET_LATTICE_FACTOR, SolverConfig,
+    SpringMaterial, SubstepPolicy, UnknownIntegrator,
 };
 use parts::non_negative;
 pub use parts::{
-    Anchors, CouplingSpec, DEGENERATE_HEIGHT, ExternalForces, HingeGeometry, HingeSpec, Hinges,
-    Masses, PointState, Pressure, Springs, angle_difference, hold_still,
+    Anchors, CURVATURE_STABILISATION, CouplingSpec, CurvatureSpec, DEGENERATE_FAN,
+    DEGENERATE_HEIGHT, ExternalForces, FIT_CONDITION, HingeGeometry, HingeSpec, Hinges,
+    MIN_FIT_POINTS, Masses, PointState, Pressure, Springs, angle_difference, fit_weights,
+    hold_still,
 };
 pub use report::{Diagnostics, Energy, Instability, SolverError, Stability, StepReport};
 pub use springs::{COINCIDENT_DISTANCE, SpringSpec};
@@ -266,6 +268,12 @@ impl Solver {
         let couplings = material.couplings(network);
         if !couplings.is_empty() {
             solver.springs.set_couplings(&couplings)?;
+        }
+        let curvatures = material.curvatures(network);
+        if !curvatures.is_empty() {
+            solver
+                .springs
+                .set_curvatures(&curvatures, &network.positions)?;
         }
         Ok(solver)
     }

@@ -13,12 +13,18 @@ use glam::Vec3;
 
 mod anchors;
 mod couplings;
+mod curvatures;
 mod hinges;
 mod pressure;
 
 pub use anchors::Anchors;
 pub use couplings::CouplingSpec;
 pub(crate) use couplings::{COUPLED_PAIRS, CouplingBlock, Couplings};
+pub use curvatures::{
+    CURVATURE_STABILISATION, CurvatureSpec, DEGENERATE_FAN, FIT_CONDITION, MIN_FIT_POINTS,
+    fit_weights,
+};
+pub(crate) use curvatures::{CurvatureBlock, Curvatures};
 pub(crate) use hinges::HingeBlock;
 pub use hinges::{DEGENERATE_HEIGHT, HingeGeometry, HingeSpec, Hinges, angle_difference};
 pub use pressure::Pressure;
@@ -335,6 +341,7 @@ pub struct Springs {
     plasticity: Plasticity,
     pub(crate) hinges: Hinges,
     pub(crate) couplings: Couplings,
+    pub(crate) curvatures: Curvatures,
 }
 
 impl Springs {
@@ -370,6 +377,7 @@ impl Springs {
             plasticity: Plasticity::ELASTIC,
             hinges: Hinges::default(),
             couplings: Couplings::default(),
+            curvatures: Curvatures::default(),
         })
     }
 
@@ -383,6 +391,41 @@ impl Springs {
     /// three distinct springs of these or a coupling is not finite).
     pub fn set_couplings(&mut self, couplings: &[CouplingSpec]) -> Result<(), SolverError> {
         self.couplings = Couplings::new(couplings, &self.layout)?;
+        self.revision = next_revision();
+        Ok(())
+    }
+
+    /// The curvature bending of each point that has it (none unless set; see
+    /// [`CurvatureSpec`]).
+    pub fn curvatures(&self) -> Vec<CurvatureSpec> {
+        self.curvatures.iter().collect()
+    }
+
+    /// Replaces the curvature bending (refused, nothing changed, when a spec is bad or its
+    /// fan has no area at `rest`, the points' rest positions).
+    pub fn set_curvatures(
+        &mut self,
+        curvatures: &[CurvatureSpec],
+        rest: &[Vec3],
+    ) -> Result<(), SolverError> {
+        self.curvatures = Curvatures::new(curvatures, rest)?;
+        self.revision = next_revision();
+        Ok(())
+    }
+
+    /// Number of points with curvature bending.
+    pub fn curvature_count(&self) -> usize {
+        self.curvatures.len()
+    }
+
+    /// Sets every curvature-bending point's rest curvature, modulus and damping from its
+    /// index (`of(index)` gives `[c̄, d̄, ē, modulus, damping]`; refused, nothing changed,
+    /// when one is not finite or the modulus or damping is negative).
+    pub fn set_curvature_parameters(
+        &mut self,
+        of: impl FnMut(usize) -> [f32; 5],
+    ) -> Result<(), SolverError> {
+        self.curvatures.set_parameters(of)?;
         self.revision = next_revision();
         Ok(())
     }
@@ -410,10 +453,14 @@ impl Springs {
         Ok(())
     }
 
-    /// Sets every hinge's rest angle to its angle at `points` (a bake; see
-    /// [`Hinges::set_rest_shape`]).
+    /// Sets every hinge's rest angle to its angle at `points`, and every curvature-bending
+    /// point's rest curvature to its curvature there (a bake; see [`Hinges::set_rest_shape`]);
+    /// refused, nothing changed, where a hinge's triangle or a point's fan has collapsed.
     pub fn set_rest_angles(&mut self, points: &PointState) -> Result<(), SolverError> {
+        let mut curvatures = self.curvatures.clone();
+        curvatures.set_rest_shape(points)?;
         self.hinges.set_rest_shape(points)?;
+        self.curvatures = curvatures;
         self.revision = next_revision();
         Ok(())
     }
@@ -539,7 +586,8 @@ impl Springs {
             return 0;
         }
         let fraction = p.fraction(dt);
-        let hinges = self.hinges.flow(points, p.yield_angle, fraction);
+        let hinges = self.hinges.flow(points, p.yield_angle, fraction)
+            + self.curvatures.flow(points, p.yield_angle, fraction);
         let (x, l) = (&points.x, &mut self.layout);
         let mut flowed = 0;
         for s in 0..l.len() {

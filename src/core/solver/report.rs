@@ -91,6 +91,15 @@ pub enum SolverError {
         /// What is wrong.
         what: &'static str,
     },
+    /// A point's curvature bending names points out of range, has weights or numbers that
+    /// are not valid, or a fan with no area at rest.
+    #[error("curvature bending {point}: {what}")]
+    InvalidCurvature {
+        /// The spec's index.
+        point: usize,
+        /// What is wrong.
+        what: &'static str,
+    },
     /// A triangle's coupling names springs that are not three distinct ones of the surface,
     /// or a coupling that is not finite.
     #[error("coupling of triangle {triangle}: {what}")]

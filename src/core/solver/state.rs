@@ -29,6 +29,11 @@ pub struct SolverState {
     /// angles), in the order given (empty without hinges).
     #[serde(default)]
     pub hinges: Vec<[f32; 3]>,
+    /// Each curvature-bending point's `[c̄, d̄, ē, modulus, damping]` (its rest curvature,
+    /// which plastic flow and bakes move, its flexural rigidity and damping time), in the
+    /// order given (empty without curvature bending).
+    #[serde(default)]
+    pub curvatures: Vec<[f32; 5]>,
     /// Every anchor slot as `(generation, anchor)`.
     pub anchor_slots: Vec<(u32, Option<Anchor>)>,
     /// The empty anchor slots, in the order they will be reused.
@@ -146,6 +151,12 @@ impl SolverState {
                 .iter()
                 .map(|h| [h.rest_angle, h.stiffness, h.damping])
                 .collect(),
+            curvatures: parts
+                .springs
+                .curvatures()
+                .iter()
+                .map(|c| [c.rest[0], c.rest[1], c.rest[2], c.modulus, c.damping])
+                .collect(),
             anchor_slots,
             free_anchor_slots,
             external: (0..parts.external.len())
@@ -193,6 +204,11 @@ impl SolverState {
                 "the snapshot's hinges do not match the surface's",
             ));
         }
+        if state.curvatures.len() != parts.springs.curvature_count() {
+            return Err(SolverError::InvalidConfig(
+                "the snapshot's curvature bending does not match the surface's",
+            ));
+        }
         if !state.warm_start.is_empty() && state.warm_start.len() != n {
             return Err(mismatch("snapshot warm start", state.warm_start.len(), n));
         }
@@ -235,6 +251,9 @@ impl SolverState {
         springs.set_parameters(|i| (state.springs[i][1], state.springs[i][2]))?;
         if hinges > 0 {
             springs.set_hinge_parameters(|i| state.hinges[i])?;
+        }
+        if !state.curvatures.is_empty() {
+            springs.set_curvature_parameters(|i| state.curvatures[i])?;
         }
         let anchors = Anchors::from_slots(&state.anchor_slots, &state.free_anchor_slots, n)?;
         let mut external = ExternalForces::zeros(n);

@@ -64,6 +64,9 @@ pub struct Stepper {
     pub(crate) fb: Soa3,
     /// Each hinge's ∇θ at the state of the forces, for an implicit step.
     pub(crate) hinge_gradients: Vec<[Vec3; 4]>,
+    /// Each curvature-bending point's normal at the state of the forces, for an implicit
+    /// step.
+    pub(crate) curvature_normals: Vec<Vec3>,
     /// Whether `fa` and `fb` hold the forces at the current state (phase 1 ran).
     forces_ready: bool,
     /// Where explicit steps write the new state (see [`Stepper::integrate`]).
@@ -257,6 +260,10 @@ impl Stepper {
             .springs
             .couplings
             .accumulate(layout, points, &mut self.fa);
+        model
+            .springs
+            .curvatures
+            .accumulate(points, &mut self.fa, &mut self.curvature_normals);
         for a in model.anchors.live() {
             let i = a.point as usize;
             let f = a.stiffness * (a.target - points.x.get(i)) - a.damping * points.v.get(i);
@@ -618,7 +625,7 @@ impl Stepper {
     pub fn energy(&self, points: &PointState, model: Model<'_>) -> Energy {
         let mut e = Energy {
             spring: model.springs.energy(points),
-            bending: model.springs.hinges.energy(points),
+            bending: model.springs.hinges.energy(points) + model.springs.curvatures.energy(points),
             ..Energy::default()
         };
         let g = self.config.gravity.as_dvec3();
@@ -662,6 +669,12 @@ fn estimate_stability(config: &SolverConfig, model: Model<'_>) -> Stability {
         }
     }
     ratio = ratio.min(model.springs.hinges.stability_rows(&mut stiff, &mut damp));
+    ratio = ratio.min(
+        model
+            .springs
+            .curvatures
+            .stability_rows(&mut stiff, &mut damp),
+    );
     model.springs.couplings.stability_rows(layout, &mut stiff);
     for a in model.anchors.live() {
         let i = a.point as usize;

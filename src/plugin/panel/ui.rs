@@ -321,6 +321,7 @@ fn material(ui: &mut egui::Ui, entity: Entity, s: &mut PanelSurfaceItem, world: 
         for (model, name) in [
             (BendingModel::Springs, "bend springs"),
             (BendingModel::Hinges, "hinges"),
+            (BendingModel::Curvature, "curvature"),
         ] {
             ui.radio_value(&mut m.bending, model, name)
                 .on_hover_text("prepares the surface again");
@@ -339,7 +340,7 @@ fn material(ui: &mut egui::Ui, entity: Entity, s: &mut PanelSurfaceItem, world: 
                 format!("bend {damping}"),
             ));
         }
-        BendingModel::Hinges => {
+        BendingModel::Hinges | BendingModel::Curvature => {
             ui.add(log_slider(
                 &mut m.bending_modulus,
                 1.0e-5..=100.0,

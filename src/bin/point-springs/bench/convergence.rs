@@ -1,8 +1,9 @@
 //! `point-springs bench convergence`: does a coarse network model the same surface as a fine
 //! one? Four static problems, each prepared at several simplification levels (down from
 //! every dense point as a simulation point), with the material per spring (the paper's), as a
-//! sheet's moduli (see `MaterialUnits`), and as a sheet bending on hinges (see
-//! `BendingModel::Hinges`), run to equilibrium. Each load is defined on the dense surface, so
+//! sheet's moduli (see `MaterialUnits`), as a sheet bending on hinges (see
+//! `BendingModel::Hinges`) and as a sheet bending on each point's fitted curvature (see
+//! `BendingModel::Curvature`), run to equilibrium. Each load is defined on the dense surface, so
 //! every level carries the same one; the sag (the load-weighted mean displacement of the dense
 //! points it acts on) and the peak displacement, both measured on the dense surface after the
 //! transfer, are compared with the same material's finest level, and the stretch springs'
@@ -88,6 +89,14 @@ fn hinge_material() -> SpringMaterial {
     }
 }
 
+/// [`hinge_material`] bending on each point's fitted curvature instead of hinges.
+fn curvature_material() -> SpringMaterial {
+    SpringMaterial {
+        bending: BendingModel::Curvature,
+        ..hinge_material()
+    }
+}
+
 /// The materials compared.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, clap::ValueEnum)]
 #[serde(rename_all = "snake_case")]
@@ -99,6 +108,8 @@ pub enum Material {
     Sheet,
     /// A sheet's stretch modulus, hinges of a flexural rigidity.
     Hinges,
+    /// A sheet's stretch modulus, each point's curvature bearing a flexural rigidity.
+    Curvature,
 }
 
 impl Material {
@@ -107,6 +118,7 @@ impl Material {
             Self::PerSpring => PER_SPRING,
             Self::Sheet => sheet_material(),
             Self::Hinges => hinge_material(),
+            Self::Curvature => curvature_material(),
         }
     }
 
@@ -115,6 +127,7 @@ impl Material {
             Self::PerSpring => "per spring",
             Self::Sheet => "sheet",
             Self::Hinges => "hinges",
+            Self::Curvature => "curvature",
         }
     }
 }
@@ -144,8 +157,11 @@ pub struct Args {
     /// Steps of 1/30 s to equilibrium.
     #[arg(long, default_value_t = 450)]
     steps: usize,
+    /// The problems run.
+    #[arg(long, value_enum, value_delimiter = ',', default_values_t = Problem::ALL)]
+    problems: Vec<Problem>,
     /// The materials compared.
-    #[arg(long, value_enum, value_delimiter = ',', default_values_t = [Material::PerSpring, Material::Sheet, Material::Hinges])]
+    #[arg(long, value_enum, value_delimiter = ',', default_values_t = [Material::PerSpring, Material::Sheet, Material::Hinges, Material::Curvature])]
     materials: Vec<Material>,
     /// Where the chart goes: this path with `.svg` and `.png`.
     #[arg(long, default_value = "convergence")]
@@ -155,9 +171,10 @@ pub struct Args {
 }
 
 /// The problems.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, clap::ValueEnum)]
 #[serde(rename_all = "snake_case")]
-enum Problem {
+#[value(rename_all = "snake_case")]
+pub enum Problem {
     /// A 2 × 2 square sheet (2887 points), pinned along its whole rim, sagging under gravity.
     Sheet,
     /// The hat of Fig. 6 (3000 points), pinned at its rim, sagging under gravity.
@@ -284,7 +301,7 @@ pub fn run(args: &Args) -> Result<(), Failure> {
     fractions.dedup();
     let mut rows = Vec::new();
     let mut series = Vec::new();
-    for problem in Problem::ALL {
+    for &problem in &args.problems {
         let cloud = problem.cloud();
         for &material in &args.materials {
             let name = material.name();
@@ -310,6 +327,7 @@ pub fn run(args: &Args) -> Result<(), Failure> {
                     Material::PerSpring => Some(3),
                     Material::Sheet => Some(9),
                     Material::Hinges => None,
+                    Material::Curvature => Some(1),
                 },
             });
             rows.extend(runs);
@@ -466,6 +484,7 @@ fn load(problem: Problem, surface: &mut PreparedSurface) -> Result<Vec<f32>, Fai
                 .transfer()
                 .spread_forces(&dense_forces, &mut forces)
                 .map_err(Failure::other)?;
+
             for (i, f) in forces.into_iter().enumerate() {
                 if f != Vec3::ZERO {
                     solver.set_external_force(i, f).map_err(Failure::other)?;

@@ -311,6 +311,7 @@ impl Report {
             match self.bending {
                 BendingModel::Springs => "",
                 BendingModel::Hinges => " --bending hinges",
+                BendingModel::Curvature => " --bending curvature",
             },
             self.seconds,
             1.0 / self.reference_dt,
@@ -603,5 +604,6 @@ fn bending_name(bending: BendingModel) -> &'static str {
     match bending {
         BendingModel::Springs => "springs",
         BendingModel::Hinges => "hinges",
+        BendingModel::Curvature => "curvature",
     }
 }
