@@ -113,6 +113,22 @@ fn a_plastic_surface_on_hinges_resumes_bit_for_bit() {
 }
 
 #[test]
+fn a_plastic_surface_bending_on_its_curvature_resumes_bit_for_bit() {
+    // Rest curvatures that creep, implicit Euler; stopped while the pull bends the hat.
+    let (mut scene, base) = scene("hat.ron");
+    scene.material.bending = BendingModel::Curvature;
+    scene.material.yield_angle = 0.02;
+    scene.material.creep_rate = 2.0;
+    scene.steps = 120;
+    scene.resample = None;
+    for pull in &mut scene.pulls {
+        pull.end = pull.end.map(|e| e.min(100));
+        pull.start = pull.start.min(99);
+    }
+    assert_resumes_bit_for_bit("plastic hat on its curvature", &scene, &base, &[60]);
+}
+
+#[test]
 fn a_snapshot_file_round_trips_and_is_written_atomically() {
     let (scene, base) = scene("sphere_poke.ron");
     let mut run = prepare(&scene, &base);
