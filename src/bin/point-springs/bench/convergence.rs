@@ -315,7 +315,8 @@ pub fn run(args: &Args) -> Result<(), Failure> {
                 r.relative = r.sag / sag;
                 r.relative_peak = r.peak / peak;
             }
-            // A colour per problem, a line per material (hinges solid, springs dashed).
+            // A colour per problem, a line per material (hinges solid, the fitted curvature in
+            // short dashes, springs dotted or in long dashes).
             series.push(Series {
                 name: format!("{problem:?}, {name}"),
                 points: runs
@@ -327,7 +328,7 @@ pub fn run(args: &Args) -> Result<(), Failure> {
                     Material::PerSpring => Some(3),
                     Material::Sheet => Some(9),
                     Material::Hinges => None,
-                    Material::Curvature => Some(1),
+                    Material::Curvature => Some(5),
                 },
             });
             rows.extend(runs);
