@@ -95,12 +95,11 @@ fn a_plastic_surface_stepped_explicitly_resumes_bit_for_bit() {
     assert_resumes_bit_for_bit("plastic hat", &scene, &base, &[60]);
 }
 
-#[test]
-fn a_plastic_surface_on_hinges_resumes_bit_for_bit() {
-    // Rest angles that creep (plastic bending), implicit Euler; stopped while the pull
-    // bends the hat past the yield angle.
+/// The hat bending as `bending` says with a bend that creeps (plastic bending), implicit
+/// Euler, stopped at step 60 while the pull bends it past the yield angle.
+fn assert_plastic_bending_resumes(name: &str, bending: BendingModel) {
     let (mut scene, base) = scene("hat.ron");
-    scene.material.bending = BendingModel::Hinges;
+    scene.material.bending = bending;
     scene.material.yield_angle = 0.02;
     scene.material.creep_rate = 2.0;
     scene.steps = 120;
@@ -109,23 +108,19 @@ fn a_plastic_surface_on_hinges_resumes_bit_for_bit() {
         pull.end = pull.end.map(|e| e.min(100));
         pull.start = pull.start.min(99);
     }
-    assert_resumes_bit_for_bit("plastic hat on hinges", &scene, &base, &[60]);
+    assert_resumes_bit_for_bit(name, &scene, &base, &[60]);
+}
+
+#[test]
+fn a_plastic_surface_on_hinges_resumes_bit_for_bit() {
+    // Rest angles that creep.
+    assert_plastic_bending_resumes("plastic hat on hinges", BendingModel::Hinges);
 }
 
 #[test]
 fn a_plastic_surface_bending_on_its_curvature_resumes_bit_for_bit() {
-    // Rest curvatures that creep, implicit Euler; stopped while the pull bends the hat.
-    let (mut scene, base) = scene("hat.ron");
-    scene.material.bending = BendingModel::Curvature;
-    scene.material.yield_angle = 0.02;
-    scene.material.creep_rate = 2.0;
-    scene.steps = 120;
-    scene.resample = None;
-    for pull in &mut scene.pulls {
-        pull.end = pull.end.map(|e| e.min(100));
-        pull.start = pull.start.min(99);
-    }
-    assert_resumes_bit_for_bit("plastic hat on its curvature", &scene, &base, &[60]);
+    // Rest curvatures that creep.
+    assert_plastic_bending_resumes("plastic hat on its curvature", BendingModel::Curvature);
 }
 
 #[test]

@@ -233,6 +233,12 @@ fn full_fit(
 /// term vanishes as the network is refined.
 pub const CURVATURE_STABILISATION: f32 = 30.0;
 
+/// The fitted height Φⱼ·coefficients at one neighbour.
+#[inline]
+fn fitted(row: &[f32; 5], coef: &[f64; 5]) -> f64 {
+    row.iter().zip(coef).map(|(r, c)| f64::from(*r) * c).sum()
+}
+
 /// K·s for the plate's form K = k·[[1, 0, ν], [0, 2(1 − ν), 0], [ν, 0, 1]].
 #[inline]
 fn form<T>(k: T, nu: T, s: [T; 3]) -> [T; 3]
@@ -281,6 +287,10 @@ pub(crate) struct Curvatures {
     rest_residual: Vec<f32>,
     /// The stabilisation's stiffness over the modulus, γ·A/ℓ⁴, per point.
     hourglass: Vec<f32>,
+    /// Per fitted neighbour, (I − ΦP)ⱼⱼ; per point, 1ᵀ(I − ΦP)1: the stabilisation's
+    /// diagonal blocks, which depend only on the rest shape.
+    projector_diagonal: Vec<f64>,
+    projector_sum: Vec<f64>,
 }
 
 /// One point's curvature in an implicit step (see [`Curvatures::linearised`]).
@@ -356,8 +366,24 @@ impl Curvatures {
             let l2 = phi.iter().map(|r| r[0] * r[0] + r[1] * r[1]).sum::<f64>() / phi.len() as f64;
             part.hourglass
                 .push((f64::from(CURVATURE_STABILISATION * s.area) / (l2 * l2)) as f32);
-            part.p_full.extend(pf.iter().map(|w| w.map(|x| x as f32)));
-            part.phi.extend(phi.iter().map(|w| w.map(|x| x as f32)));
+            // Stored in f32; the projector's constants from the stored values, so that they
+            // are the products' own.
+            let pf: Vec<[f32; 5]> = pf.iter().map(|w| w.map(|x| x as f32)).collect();
+            let phi: Vec<[f32; 5]> = phi.iter().map(|w| w.map(|x| x as f32)).collect();
+            let dot5 =
+                |a: &[f32; 5], b: [f64; 5]| (0..5).map(|k| f64::from(a[k]) * b[k]).sum::<f64>();
+            let p_sum = pf.iter().fold([0.0f64; 5], |acc, w| {
+                [0, 1, 2, 3, 4].map(|k| acc[k] + f64::from(w[k]))
+            });
+            part.projector_diagonal.extend(
+                phi.iter()
+                    .zip(&pf)
+                    .map(|(r, w)| 1.0 - dot5(r, w.map(f64::from))),
+            );
+            let fitted_ones: f64 = phi.iter().map(|r| dot5(r, p_sum)).sum();
+            part.projector_sum.push(phi.len() as f64 - fitted_ones);
+            part.p_full.extend(pf);
+            part.phi.extend(phi);
             part.point.push(s.point);
             part.fan.extend_from_slice(&s.fan);
             part.fan_start.push(part.fan.len() as u32);
@@ -510,20 +536,21 @@ impl Curvatures {
             let mut de_dn = Vec3::ZERO;
             let xp = x.get(p);
             let kh = self.stab_stiffness(c);
-            let stab: Vec<f32> = if kh > 0.0 {
-                let h: Vec<f64> = fit
-                    .iter()
-                    .map(|&j| f64::from(n.dot(x.get(j as usize) - xp)))
-                    .collect();
-                self.residual(c, &h)
-                    .iter()
-                    .zip(self.rest_residual_of(c))
-                    .map(|(r, r0)| kh * (*r as f32 - r0))
-                    .collect()
+            let height = |j: u32| f64::from(n.dot(x.get(j as usize) - xp));
+            let coef = if kh > 0.0 {
+                self.coefficients(c, height)
             } else {
-                vec![0.0; fit.len()]
+                [0.0; 5]
             };
-            for ((&j, w), s) in fit.iter().zip(weights).zip(&stab) {
+            let range = self.fit_start[c] as usize..self.fit_start[c + 1] as usize;
+            let (phi, rest_residual) = (&self.phi[range.clone()], &self.rest_residual[range]);
+            for (((&j, w), row), r0) in fit.iter().zip(weights).zip(phi).zip(rest_residual) {
+                // The stabilisation's k_h·(rⱼ − r̄ⱼ).
+                let s = if kh > 0.0 {
+                    kh * ((height(j) - fitted(row, &coef)) as f32 - r0)
+                } else {
+                    0.0
+                };
                 let j = j as usize;
                 let g = dot3(*w, stress) + s;
                 f.set(j, f.get(j) - g * n);
@@ -638,29 +665,31 @@ impl Curvatures {
             return;
         }
         let centre = p[self.point[c] as usize];
-        let range = self.fit_start[c] as usize..self.fit_start[c + 1] as usize;
-        let (fit, pf, phi) = (
-            &self.fit[range.clone()],
-            &self.p_full[range.clone()],
-            &self.phi[range],
-        );
         let height = |j: u32| n.dot(p[j as usize] - centre);
-        // Two passes without a buffer: the fit's coefficients, then each residual.
+        let coef = self.coefficients(c, height);
+        let (fit, _) = self.fit_of(c);
+        let phi = &self.phi[self.fit_start[c] as usize..self.fit_start[c + 1] as usize];
+        let mut on_p = 0.0;
+        for (&j, row) in fit.iter().zip(phi) {
+            let r = k * (height(j) - fitted(row, &coef));
+            y[j as usize] += r * n;
+            on_p += r;
+        }
+        y[self.point[c] as usize] -= on_p * n;
+    }
+
+    /// The quadric's five coefficients fitted to point `c`'s heights (`height` of each
+    /// fitted neighbour), without a buffer.
+    fn coefficients(&self, c: usize, height: impl Fn(u32) -> f64) -> [f64; 5] {
+        let r = self.fit_start[c] as usize..self.fit_start[c + 1] as usize;
         let mut coef = [0.0f64; 5];
-        for (&j, w) in fit.iter().zip(pf) {
+        for (&j, w) in self.fit[r.clone()].iter().zip(&self.p_full[r]) {
             let h = height(j);
             for (c, w) in coef.iter_mut().zip(w) {
                 *c += f64::from(*w) * h;
             }
         }
-        let mut on_p = 0.0;
-        for (&j, row) in fit.iter().zip(phi) {
-            let fitted: f64 = row.iter().zip(&coef).map(|(r, c)| f64::from(*r) * c).sum();
-            let r = k * (height(j) - fitted);
-            y[j as usize] += r * n;
-            on_p += r;
-        }
-        y[self.point[c] as usize] -= on_p * n;
+        coef
     }
 
     /// rhs −= h²·JᵀKJ·v₀ (the right-hand side's h²·∂f/∂x·v₀).
@@ -716,12 +745,11 @@ impl Curvatures {
             if kh > 0.0 {
                 // Each neighbour's entry is (I − ΦP)ⱼⱼ; the centre's heights all move by −1,
                 // so its entry is 1ᵀ(I − ΦP)1.
-                let projector = self.projector(c);
-                let mut all = 0.0;
-                for (i, (row, &j)) in projector.iter().zip(fit).enumerate() {
-                    add(j as usize, b.normal, kh * row[i]);
-                    all += row.iter().sum::<f64>();
+                let range = self.fit_start[c] as usize..self.fit_start[c + 1] as usize;
+                for (&j, d) in fit.iter().zip(&self.projector_diagonal[range]) {
+                    add(j as usize, b.normal, kh * d);
                 }
+                let all = self.projector_sum[c];
                 add(self.point[c] as usize, b.normal, kh * all);
             }
         }
