@@ -291,6 +291,11 @@ impl Solver {
         self.springs.hinges().len()
     }
 
+    /// Number of points bending on their fitted curvature.
+    pub fn curvature_count(&self) -> usize {
+        self.springs.curvature_count()
+    }
+
     /// The read-only parts a step needs.
     pub fn model(&self) -> Model<'_> {
         Model {

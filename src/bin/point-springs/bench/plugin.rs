@@ -83,6 +83,8 @@ struct PluginReport {
     springs: usize,
     /// Hinges (bending; 0 with bend springs).
     hinges: usize,
+    /// Points bending on their fitted curvature (0 with another model).
+    curvatures: usize,
     /// The integrator.
     integrator: String,
     /// Ticks timed.
@@ -105,6 +107,8 @@ struct PluginReport {
     ms_core_tick: f64,
     /// ECS tick / core tick.
     ecs_over_core: f64,
+    /// The core's solver: CG iterations a step, over every step it took.
+    cg_per_step: f64,
     /// Whether the ECS's and the core's dense surfaces are the same, bit for bit.
     identical: bool,
 }
@@ -113,12 +117,13 @@ impl fmt::Display for PluginReport {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         writeln!(
             f,
-            "scene        {} ({} dense, {} simulation points, {} springs, {} hinges, {}; {} executor)",
+            "scene        {} ({} dense, {} simulation points, {} springs, {} hinges, {} curvatures, {}; {} executor)",
             self.scene,
             self.dense_points,
             self.sim_points,
             self.springs,
             self.hinges,
+            self.curvatures,
             self.integrator,
             self.executor
         )?;
@@ -141,6 +146,11 @@ impl fmt::Display for PluginReport {
             f,
             "core tick    {:.3} ms (the same work without the ECS): ECS / core = {:.3}",
             self.ms_core_tick, self.ecs_over_core
+        )?;
+        writeln!(
+            f,
+            "solver       {:.1} CG iterations a step",
+            self.cg_per_step
         )?;
         writeln!(f, "identical    {}", self.identical)
     }
@@ -425,6 +435,7 @@ fn report(
         sim_points: core.surface.solver.len(),
         springs: core.surface.solver.spring_count(),
         hinges: core.surface.solver.hinge_count(),
+        curvatures: core.surface.solver.curvature_count(),
         integrator: scene.solver.integrator.to_string(),
         ticks: clock.timed,
         ms_prepare,
@@ -436,6 +447,10 @@ fn report(
         ms_frame: ms_tick + ms_upload,
         ms_core_tick,
         ecs_over_core: ms_tick / ms_core_tick,
+        cg_per_step: {
+            let d = core.surface.solver.diagnostics();
+            d.cg_iterations as f64 / d.steps.max(1) as f64
+        },
         identical,
     })
 }

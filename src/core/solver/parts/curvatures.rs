@@ -233,6 +233,10 @@ fn full_fit(
 /// term vanishes as the network is refined.
 pub const CURVATURE_STABILISATION: f32 = 30.0;
 
+/// The most fitted neighbours whose heights an implicit product keeps on the stack (the
+/// ring's rings have about 15; wider fits compute them twice).
+const BUFFERED_HEIGHTS: usize = 48;
+
 /// The fitted height Φⱼ·coefficients at one neighbour.
 #[inline]
 fn fitted(row: &[f32; 5], coef: &[f64; 5]) -> f64 {
@@ -613,69 +617,63 @@ impl Curvatures {
         }));
     }
 
-    /// J·p for point `c` held along `n`: (Σⱼ wⱼ·n·(pⱼ − p_c)).
-    fn apply_j(&self, c: usize, n: DVec3, p: &[DVec3]) -> [f64; 3] {
-        let centre = p[self.point[c] as usize];
-        let (fit, weights) = self.fit_of(c);
+    /// y += (k·JᵀKJ + kₕ·Jₕᵀ(I − ΦP)Jₕ)·p for point `c` held along `n` (Jₕ: its
+    /// neighbours' heights; K the plate's form of stiffness k): the implicit step's block
+    /// of one point, in two passes over its neighbours.
+    fn add_block(&self, c: usize, n: DVec3, k: f64, kh: f64, p: &[DVec3], y: &mut [DVec3]) {
+        let at = self.point[c] as usize;
+        let centre = p[at];
+        let range = self.fit_start[c] as usize..self.fit_start[c + 1] as usize;
+        let fit = &self.fit[range.clone()];
+        let weights = &self.weights[range.clone()];
+        let (pf, phi) = (&self.p_full[range.clone()], &self.phi[range]);
+        // Pass 1: the curvature change J·p and the fit's coefficients P·Jₕ·p; the heights
+        // are kept for pass 2 where the fit is small enough (it is, but for wide custom fits).
+        let mut heights = [0.0f64; BUFFERED_HEIGHTS];
+        let buffered = fit.len() <= BUFFERED_HEIGHTS;
         let mut s = [0.0f64; 3];
-        for (&j, w) in fit.iter().zip(weights) {
+        let mut coef = [0.0f64; 5];
+        for (i, ((&j, w), q)) in fit.iter().zip(weights).zip(pf).enumerate() {
             let h = n.dot(p[j as usize] - centre);
-            for k in 0..3 {
-                s[k] += f64::from(w[k]) * h;
+            if buffered {
+                heights[i] = h;
+            }
+            for (s, w) in s.iter_mut().zip(w) {
+                *s += f64::from(*w) * h;
+            }
+            for (c, q) in coef.iter_mut().zip(q) {
+                *c += f64::from(*q) * h;
             }
         }
-        s
-    }
-
-    /// y += Jᵀ·t for point `c` held along `n`, each neighbour's share scaled by `sign`.
-    fn add_jt(&self, c: usize, n: DVec3, t: [f64; 3], sign: f64, y: &mut [DVec3]) {
-        let (fit, weights) = self.fit_of(c);
+        let t = form(k, f64::from(self.poisson[c]), s);
+        // Pass 2: each neighbour's share along n, Jᵀ·K·s plus kₕ times its residual.
         let mut on_p = 0.0;
-        for (&j, w) in fit.iter().zip(weights) {
-            let g = dot3(w.map(f64::from), t) * sign;
+        for (i, ((&j, w), row)) in fit.iter().zip(weights).zip(phi).enumerate() {
+            let mut g = dot3(w.map(f64::from), t);
+            if kh != 0.0 {
+                let h = if buffered {
+                    heights[i]
+                } else {
+                    n.dot(p[j as usize] - centre)
+                };
+                g += kh * (h - fitted(row, &coef));
+            }
             y[j as usize] += g * n;
             on_p += g;
         }
-        y[self.point[c] as usize] -= on_p * n;
+        y[at] -= on_p * n;
     }
 
-    /// y += Σ scale·JᵀKJ·p over the points (the implicit step's matrix).
+    /// y += Σ scale·(JᵀKJ + stabilisation)·p over the points (the implicit step's matrix).
     pub(crate) fn apply(&self, blocks: &[CurvatureBlock], p: &[DVec3], y: &mut [DVec3]) {
         for (c, b) in blocks.iter().enumerate() {
             if b.normal == DVec3::ZERO {
                 continue;
             }
-            let s = self.apply_j(c, b.normal, p);
             let k = f64::from(self.stiffness(c)) * b.scale;
-            let t = form(k, f64::from(self.poisson[c]), s);
-            self.add_jt(c, b.normal, t, 1.0, y);
-            self.add_stab(
-                c,
-                b.normal,
-                f64::from(self.stab_stiffness(c)) * b.scale,
-                p,
-                y,
-            );
+            let kh = f64::from(self.stab_stiffness(c)) * b.scale;
+            self.add_block(c, b.normal, k, kh, p, y);
         }
-    }
-
-    /// y += k·Jₕᵀ(I − ΦP)Jₕ·p: the stabilisation's block (Jₕ: the heights).
-    fn add_stab(&self, c: usize, n: DVec3, k: f64, p: &[DVec3], y: &mut [DVec3]) {
-        if k == 0.0 {
-            return;
-        }
-        let centre = p[self.point[c] as usize];
-        let height = |j: u32| n.dot(p[j as usize] - centre);
-        let coef = self.coefficients(c, height);
-        let (fit, _) = self.fit_of(c);
-        let phi = &self.phi[self.fit_start[c] as usize..self.fit_start[c + 1] as usize];
-        let mut on_p = 0.0;
-        for (&j, row) in fit.iter().zip(phi) {
-            let r = k * (height(j) - fitted(row, &coef));
-            y[j as usize] += r * n;
-            on_p += r;
-        }
-        y[self.point[c] as usize] -= on_p * n;
     }
 
     /// The quadric's five coefficients fitted to point `c`'s heights (`height` of each
@@ -704,12 +702,9 @@ impl Curvatures {
             if b.normal == DVec3::ZERO {
                 continue;
             }
-            let s = self.apply_j(c, b.normal, v);
-            let k = f64::from(self.stiffness(c)) * step * step;
-            let t = form(k, f64::from(self.poisson[c]), s);
-            self.add_jt(c, b.normal, t, -1.0, rhs);
+            let k = -f64::from(self.stiffness(c)) * step * step;
             let kh = -f64::from(self.stab_stiffness(c)) * step * step;
-            self.add_stab(c, b.normal, kh, v, rhs);
+            self.add_block(c, b.normal, k, kh, v, rhs);
         }
     }
 
