@@ -295,6 +295,13 @@ struct System<'a> {
 }
 
 impl System<'_> {
+    /// Whether the step bends on hinges or curvature: a matrix whose block Jacobi
+    /// preconditioner leaves a solve 1.5–2.6 times the iterations of symmetric Gauss–Seidel
+    /// (see [`JACOBI_ITERATIONS`]).
+    fn bends(&self) -> bool {
+        !self.hinges.is_empty() || !self.curvature_blocks.is_empty()
+    }
+
     /// y = A·p (fixed rows zero; p is zero at fixed points), and returns p·y.
     fn apply(&self, p: &[DVec3], y: &mut [DVec3]) -> f64 {
         let n = p.len();
@@ -710,12 +717,16 @@ fn conjugate_gradient(
 }
 
 /// Iterations of block-Jacobi conjugate gradient before a solve restarts with symmetric
-/// Gauss–Seidel (`sweeps`). Easy solves (the paper's sphere takes about nine a step) never
-/// pay for the Gauss–Seidel blocks, which cost more than the iterations they save there;
-/// hard ones (stiff hinges, fine or uneven networks) get the stronger preconditioner.
-/// Measured by callgrind on the poked sphere (2026-12-03), instructions against block Jacobi
-/// alone: at 338 points unchanged; at 2000 points with hinges −18 % (−20 % after 8, −15 %
-/// after 16, −24 % with Gauss–Seidel throughout), with bend springs +8 % (+6 %, +5 %, +3 %).
+/// Gauss–Seidel (`sweeps`), where the bending is the paper's bend springs. Easy solves (the
+/// paper's sphere takes about nine a step) never pay for the Gauss–Seidel blocks, which cost
+/// more than the iterations they save there; hard ones (fine or uneven networks) get the
+/// stronger preconditioner. Measured by callgrind on the poked sphere (2026-12-03),
+/// instructions against block Jacobi alone: at 338 points unchanged; at 2000 points with
+/// bend springs +8 % (+6 % after 8, +5 % after 16, +3 % with Gauss–Seidel throughout), with
+/// hinges −18 % (−20 %, −15 %, −24 % throughout). So hinges and curvature bending
+/// ([`System::bends`]) take Gauss–Seidel from the start: `bench plugin --dense 100000
+/// --sim 2000` (2026-12-04, one run each) 26.2 → 19.3 CG iterations a step with hinges, and
+/// with curvature 20.6 → 13.2 (34.5 before its stencils joined the sweeps).
 const JACOBI_ITERATIONS: u32 = 12;
 
 /// z = P⁻¹·r in `s`: symmetric Gauss–Seidel, or block Jacobi (each point's whole 3×3
@@ -764,8 +775,13 @@ fn iterate(
         s.r.copy_from_slice(&s.rhs);
     }
     // Block Jacobi first; a solve that takes more than JACOBI_ITERATIONS restarts with
-    // symmetric Gauss–Seidel (and an earlier pass's Gauss–Seidel is kept).
+    // symmetric Gauss–Seidel (and an earlier pass's Gauss–Seidel is kept). Bending stiff
+    // enough to need it (hinges, curvature) gets Gauss–Seidel from the start.
     let mut gauss_seidel = s.sweeps.is_assembled();
+    if !gauss_seidel && system.bends() {
+        s.sweeps.assemble(s.r.len(), system);
+        gauss_seidel = true;
+    }
     let mut rz = precondition(s, gauss_seidel);
     if filtered {
         filter(&s.normal, &mut s.z);

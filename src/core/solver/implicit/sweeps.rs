@@ -7,7 +7,8 @@
 //! with D the points' 3×3 diagonal blocks and L the strictly lower 3×3 blocks of the step's
 //! sparse matrix (the springs' −C between their ends, each hinge's s·∇ᵢθ∇ⱼθᵀ between its
 //! corners, each coupled triangle's h²·Cᵢⱼ·(±uᵢ)(±uⱼ)ᵀ between its corners, on its edges'
-//! blocks; the gas's dense rank-one term only on the diagonal). One forward and one
+//! blocks, each curvature stencil's m·nnᵀ on the pairs its springs join; the gas's dense
+//! rank-one term only on the diagonal). One forward and one
 //! backward sweep over the blocks, in point order, so the result does not depend on threads.
 //! P is symmetric positive definite whenever D is, which any step's matrix gives.
 //!
@@ -15,14 +16,28 @@
 //! (60 steps, instructions counted by callgrind, 2026-12-03) it takes 10.0 iterations a step
 //! for 20.4 with bend springs and 18.6 for 49.7 with hinges, but a sweep costs about as much
 //! as a product with the matrix: 3 % more instructions with bend springs, 24 % fewer with
-//! hinges; at the paper's 338 points 12–15 % more. So a solve starts with block Jacobi and
-//! turns to this after `JACOBI_ITERATIONS` (see `iterate`). Over-relaxation (SSOR, ω 1.2 to
-//! 1.6) took as many iterations or more.
+//! hinges; at the paper's 338 points 12–15 % more. So a solve on bend springs starts with
+//! block Jacobi and turns to this after `JACOBI_ITERATIONS`; one on hinges or curvature
+//! starts with this (see `iterate`). Over-relaxation (SSOR, ω 1.2 to 1.6) took as many
+//! iterations or more.
+//!
+//! A curvature stencil couples every pair of its points, about 50 pairs a point; only those
+//! its springs already join enter L (an incomplete factorisation's pattern). On the poked
+//! sphere at 2000 points (`bench plugin`, 2026-12-04) they cut a solve from 34.5 to 20.6
+//! iterations; every pair (the pattern grown to hold them) 20.1, for sweeps that cost more
+//! than the iterations saved.
 
 use glam::{DMat3, DVec3};
 
 use super::{Sym3, System};
 use crate::core::solver::parts::COUPLED_PAIRS;
+
+/// A curvature stencil's pair that no spring or hinge couples: left out of the sweeps.
+const NO_SLOT: u32 = u32::MAX;
+
+/// The widest curvature stencil whose pairs join the sweeps (wider ones, only from custom
+/// specs, keep their diagonal blocks alone, so the pattern's bookkeeping stays bounded).
+const MAX_COUPLED_STENCIL: usize = 49;
 
 /// The pairs of corners (j, m), j < m, of a hinge: each couples its two points.
 const HINGE_PAIRS: [(usize, usize); 6] = [(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)];
@@ -38,6 +53,10 @@ pub(crate) struct GaussSeidel {
     a_end: Vec<u32>,
     b_end: Vec<u32>,
     hinge_ends: Vec<[u32; 4]>,
+    /// The curvature bending's stencils (`Curvatures::topology`).
+    curvature_point: Vec<u32>,
+    curvature_start: Vec<u32>,
+    curvature_fit: Vec<u32>,
     /// Where each row's blocks start in `column` and `block` (one more than the rows).
     row_start: Vec<u32>,
     column: Vec<u32>,
@@ -45,6 +64,9 @@ pub(crate) struct GaussSeidel {
     /// The block each spring adds to, and each hinge's pairs ([`HINGE_PAIRS`]).
     spring_slot: Vec<u32>,
     hinge_slot: Vec<[u32; 6]>,
+    /// The block each curvature stencil's pair adds to, in `Curvatures::pairs`'s order
+    /// ([`NO_SLOT`] where no spring or hinge couples the two points).
+    curvature_slot: Vec<u32>,
     /// Whether the blocks hold this step's matrix.
     assembled: bool,
     /// The forward sweep's result, and the backward sweep's sums.
@@ -60,10 +82,17 @@ impl GaussSeidel {
             && self.a_end[..] == system.a_end[..springs]
             && self.b_end[..] == system.b_end[..springs]
             && self.hinge_ends[..] == system.hinge_ends[..hinges]
+            && (
+                &self.curvature_point[..],
+                &self.curvature_start[..],
+                &self.curvature_fit[..],
+            ) == system.curvatures.topology()
     }
 
     /// The pattern for the system's topology: every pair of points a spring or a hinge
-    /// couples, once.
+    /// couples, once. Curvature bending couples every pair of a point's stencil; only the
+    /// pairs already in this pattern (the stencil's springs) get its blocks, as in an
+    /// incomplete factorisation: the sweeps stay as cheap as the springs make them.
     fn build(&mut self, n: usize, system: &System<'_>) {
         let springs = system.blocks.len();
         self.points = n;
@@ -90,14 +119,30 @@ impl GaussSeidel {
             self.column.extend_from_slice(row);
             self.row_start.push(self.column.len() as u32);
         }
-        // Every pair was put in its row above, so the search finds it.
-        let slot = |i: u32, j: u32| {
+        let find = |i: u32, j: u32| {
             let (row, col) = lower(i, j);
             let start = self.row_start[row as usize] as usize;
             let end = self.row_start[row as usize + 1] as usize;
-            let at = self.column[start..end].binary_search(&col).unwrap_or(0);
-            (start + at) as u32
+            let at = self.column[start..end].binary_search(&col).ok()?;
+            Some((start + at) as u32)
         };
+        // Every spring's and hinge's pair was put in its row above, so the search finds it.
+        let slot = |i: u32, j: u32| find(i, j).unwrap_or(0);
+        let curvatures = system.curvatures;
+        let mut curvature_slot = Vec::new();
+        for c in 0..curvatures.len() {
+            let stencil: Vec<u32> = curvatures.stencil(c).collect();
+            if stencil.len() <= MAX_COUPLED_STENCIL {
+                curvatures.pairs(c, 1.0, |a, b, _| {
+                    curvature_slot.push(find(stencil[a], stencil[b]).unwrap_or(NO_SLOT));
+                });
+            }
+        }
+        let (point, start, fit) = curvatures.topology();
+        self.curvature_point = point.to_vec();
+        self.curvature_start = start.to_vec();
+        self.curvature_fit = fit.to_vec();
+        self.curvature_slot = curvature_slot;
         self.spring_slot = (0..springs)
             .map(|s| slot(self.a_end[s], self.b_end[s]))
             .collect();
@@ -150,6 +195,33 @@ impl GaussSeidel {
             }
         }
         self.add_couplings(system);
+        self.add_curvatures(system);
+    }
+
+    /// Adds each curvature stencil's blocks m·nnᵀ on the pattern's pairs
+    /// (`Curvatures::pairs`).
+    fn add_curvatures(&mut self, system: &System<'_>) {
+        let curvatures = system.curvatures;
+        let (slots, blocks) = (&self.curvature_slot, &mut self.block);
+        let mut at = 0;
+        for (c, held) in system.curvature_blocks.iter().enumerate() {
+            let len = curvatures.stencil_len(c);
+            if len > MAX_COUPLED_STENCIL {
+                continue;
+            }
+            let n = held.normal;
+            if n == DVec3::ZERO {
+                at += len * (len - 1) / 2;
+                continue;
+            }
+            let outer = DMat3::from_cols(n * n.x, n * n.y, n * n.z);
+            curvatures.pairs(c, held.scale, |_, _, m| {
+                if let Some(&slot) = slots.get(at).filter(|&&s| s != NO_SLOT) {
+                    blocks[slot as usize] += outer * m;
+                }
+                at += 1;
+            });
+        }
     }
 
     /// Adds the couplings' off-diagonal blocks h²·Cᵢⱼ·(±uᵢ)(±uⱼ)ᵀ between the corners of

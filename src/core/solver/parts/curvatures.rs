@@ -664,6 +664,67 @@ impl Curvatures {
         y[at] -= on_p * n;
     }
 
+    /// The points' stencils as they stand (each point, where its fitted neighbours start,
+    /// and the neighbours): what the preconditioner's pattern depends on.
+    pub(crate) fn topology(&self) -> (&[u32], &[u32], &[u32]) {
+        (&self.point, &self.fit_start, &self.fit)
+    }
+
+    /// Point `c`'s stencil: its fitted neighbours, then the point itself.
+    pub(crate) fn stencil(&self, c: usize) -> impl Iterator<Item = u32> + '_ {
+        let (fit, _) = self.fit_of(c);
+        fit.iter().copied().chain(std::iter::once(self.point[c]))
+    }
+
+    /// The length of point `c`'s stencil.
+    pub(crate) fn stencil_len(&self, c: usize) -> usize {
+        (self.fit_start[c + 1] - self.fit_start[c]) as usize + 1
+    }
+
+    /// Point `c`'s block of the implicit step's matrix off its diagonal, at `scale`
+    /// ([`CurvatureBlock::scale`]): `f(a, b, m)` for every pair a < b of its stencil's
+    /// positions ([`Self::stencil`]), in order, where the block between the two points is
+    /// m·nnᵀ. Neighbours a, b: wₐᵀKw_b − kₕ·Φₐ·P_b (the projector's I − ΦP off its
+    /// diagonal); the point itself (position last) moves all heights by −1, so its column
+    /// is minus the sum of the neighbours' columns.
+    pub(crate) fn pairs(&self, c: usize, scale: f64, mut f: impl FnMut(usize, usize, f64)) {
+        let range = self.fit_start[c] as usize..self.fit_start[c + 1] as usize;
+        let weights = &self.weights[range.clone()];
+        let (pf, phi) = (&self.p_full[range.clone()], &self.phi[range]);
+        let (k, nu) = (
+            f64::from(self.stiffness(c)) * scale,
+            f64::from(self.poisson[c]),
+        );
+        let kh = f64::from(self.stab_stiffness(c)) * scale;
+        let m = weights.len();
+        let mut weight_sum = [0.0f64; 3];
+        let mut phi_sum = [0.0f64; 5];
+        for (w, row) in weights.iter().zip(phi) {
+            for (s, w) in weight_sum.iter_mut().zip(w) {
+                *s += f64::from(*w);
+            }
+            for (s, r) in phi_sum.iter_mut().zip(row) {
+                *s += f64::from(*r);
+            }
+        }
+        for a in 0..m {
+            let wa = weights[a].map(f64::from);
+            for b in a + 1..m {
+                let kw = form(k, nu, weights[b].map(f64::from));
+                f(
+                    a,
+                    b,
+                    dot3(wa, kw) - kh * fitted(&phi[a], &pf[b].map(f64::from)),
+                );
+            }
+        }
+        for (b, (w, q)) in weights.iter().zip(pf).enumerate() {
+            let kw = form(k, nu, w.map(f64::from));
+            let fitted_sum: f64 = q.iter().zip(phi_sum).map(|(q, s)| f64::from(*q) * s).sum();
+            f(b, m, -dot3(weight_sum, kw) - kh * (1.0 - fitted_sum));
+        }
+    }
+
     /// y += Σ scale·(JᵀKJ + stabilisation)·p over the points (the implicit step's matrix).
     pub(crate) fn apply(&self, blocks: &[CurvatureBlock], p: &[DVec3], y: &mut [DVec3]) {
         for (c, b) in blocks.iter().enumerate() {
@@ -1005,6 +1066,22 @@ mod tests {
                 );
             }
             assert!((diagonal[i][k % 3] - column[i][k % 3]).abs() < 1e-9);
+            // The preconditioner's off-diagonal blocks m·nnᵀ are the product's (to the f32
+            // rounding of the stored fit, by which I − ΦP is not exactly symmetric).
+            let stencil: Vec<usize> = part.stencil(0).map(|j| j as usize).collect();
+            let normal = blocks[0].normal;
+            part.pairs(0, blocks[0].scale, |a, b, m| {
+                for (row, col) in [(stencil[a], stencil[b]), (stencil[b], stencil[a])] {
+                    if col == i {
+                        let entry = m * normal * normal[k % 3];
+                        assert!(
+                            (entry - column[row]).length() < 1e-5 * (1.0 + entry.length()),
+                            "pair ({a}, {b}): {entry} against {}",
+                            column[row]
+                        );
+                    }
+                }
+            });
             // The right-hand side at step 1 is −JᵀKJ·v for the velocity e.
             let mut rhs = vec![DVec3::ZERO; n];
             part.add_rhs(&blocks, &e, 1.0, &mut rhs);
