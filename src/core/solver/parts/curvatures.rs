@@ -287,6 +287,11 @@ pub(crate) struct Curvatures {
     /// neighbours is built from `p_full` and `phi`.
     p_full: Vec<[f32; 5]>,
     phi: Vec<[f32; 5]>,
+    /// Per fitted neighbour, the implicit product's two rows in f64: [wⱼ, Pⱼ] (its height's
+    /// share of the curvature and of the fit's coefficients) and [wⱼ, Φⱼ] (the curvature's
+    /// and the fitted height's share of its force), so that a product is two 8-wide passes.
+    gather_row: Vec<[f64; 8]>,
+    scatter_row: Vec<[f64; 8]>,
     /// The rest residual of each fitted neighbour's height.
     rest_residual: Vec<f32>,
     /// The stabilisation's stiffness over the modulus, γ·A/ℓ⁴, per point.
@@ -386,6 +391,20 @@ impl Curvatures {
             );
             let fitted_ones: f64 = phi.iter().map(|r| dot5(r, p_sum)).sum();
             part.projector_sum.push(phi.len() as f64 - fitted_ones);
+            for ((w, q), r) in s.weights.iter().zip(&pf).zip(&phi) {
+                let mut gather = [0.0f64; 8];
+                let mut scatter = [0.0f64; 8];
+                for k in 0..3 {
+                    gather[k] = f64::from(w[k]);
+                    scatter[k] = f64::from(w[k]);
+                }
+                for k in 0..5 {
+                    gather[3 + k] = f64::from(q[k]);
+                    scatter[3 + k] = f64::from(r[k]);
+                }
+                part.gather_row.push(gather);
+                part.scatter_row.push(scatter);
+            }
             part.p_full.extend(pf);
             part.phi.extend(phi);
             part.point.push(s.point);
@@ -625,39 +644,37 @@ impl Curvatures {
         let centre = p[at];
         let range = self.fit_start[c] as usize..self.fit_start[c + 1] as usize;
         let fit = &self.fit[range.clone()];
-        let weights = &self.weights[range.clone()];
-        let (pf, phi) = (&self.p_full[range.clone()], &self.phi[range]);
-        // Pass 1: the curvature change J·p and the fit's coefficients P·Jₕ·p; the heights
-        // are kept for pass 2 where the fit is small enough (it is, but for wide custom fits).
+        let (gather, scatter) = (&self.gather_row[range.clone()], &self.scatter_row[range]);
+        // Pass 1: the curvature change J·p and the fit's coefficients P·Jₕ·p together; the
+        // heights are kept for pass 2 where the fit is small enough (it is, but for wide
+        // custom fits).
         let mut heights = [0.0f64; BUFFERED_HEIGHTS];
         let buffered = fit.len() <= BUFFERED_HEIGHTS;
-        let mut s = [0.0f64; 3];
-        let mut coef = [0.0f64; 5];
-        for (i, ((&j, w), q)) in fit.iter().zip(weights).zip(pf).enumerate() {
+        let mut sums = [0.0f64; 8];
+        for (i, (&j, row)) in fit.iter().zip(gather).enumerate() {
             let h = n.dot(p[j as usize] - centre);
             if buffered {
                 heights[i] = h;
             }
-            for (s, w) in s.iter_mut().zip(w) {
-                *s += f64::from(*w) * h;
-            }
-            for (c, q) in coef.iter_mut().zip(q) {
-                *c += f64::from(*q) * h;
+            for (s, r) in sums.iter_mut().zip(row) {
+                *s += r * h;
             }
         }
-        let t = form(k, f64::from(self.poisson[c]), s);
-        // Pass 2: each neighbour's share along n, Jᵀ·K·s plus kₕ times its residual.
+        let t = form(k, f64::from(self.poisson[c]), [sums[0], sums[1], sums[2]]);
+        // Pass 2: each neighbour's share along n, wⱼ·K·s + kₕ·(hⱼ − Φⱼ·coefficients).
+        let mut u = [0.0f64; 8];
+        u[..3].copy_from_slice(&t);
+        for (u, c) in u[3..].iter_mut().zip(&sums[3..]) {
+            *u = -kh * c;
+        }
         let mut on_p = 0.0;
-        for (i, ((&j, w), row)) in fit.iter().zip(weights).zip(phi).enumerate() {
-            let mut g = dot3(w.map(f64::from), t);
-            if kh != 0.0 {
-                let h = if buffered {
-                    heights[i]
-                } else {
-                    n.dot(p[j as usize] - centre)
-                };
-                g += kh * (h - fitted(row, &coef));
-            }
+        for (i, (&j, row)) in fit.iter().zip(scatter).enumerate() {
+            let h = if buffered {
+                heights[i]
+            } else {
+                n.dot(p[j as usize] - centre)
+            };
+            let g = row.iter().zip(&u).map(|(r, u)| r * u).sum::<f64>() + kh * h;
             y[j as usize] += g * n;
             on_p += g;
         }
