@@ -291,6 +291,29 @@ fn a_baked_shape_on_hinges_stays_put() {
     assert!(surface.solver.energy().bending < 1e-12);
 }
 
+#[test]
+fn a_baked_shape_on_its_curvature_stays_put() {
+    let mut surface = pulled_sphere_bending(BendingModel::Curvature);
+    assert!(surface.solver.curvature_count() > 0);
+    let pulled = surface.solver.positions();
+    assert!(surface.solver.energy().bending > 1e-6);
+    surface.bake().unwrap();
+    // The rest curvatures and the fits' rest residual heights are the pulled shape's: no
+    // bending energy, no force.
+    assert!(surface.solver.energy().bending < 1e-12);
+    for _ in 0..60 {
+        surface.solver.step(DT).unwrap();
+    }
+    let moved = surface
+        .solver
+        .positions()
+        .iter()
+        .zip(&pulled)
+        .map(|(a, b)| a.distance(*b))
+        .fold(0.0f32, f32::max);
+    assert!(moved < 1e-6, "a point moved {moved}");
+}
+
 /// The baked network's area over the area of the unit sphere's network it came from.
 fn pulled_area_ratio(surface: &PreparedSurface) -> f32 {
     let fresh = pulled_sphere();

@@ -41,7 +41,8 @@ pub fn bake(parts: BakeParts<'_>, density: f32) -> Result<SpringNetwork, Prepare
     let network = network.reshaped(&points.positions(), density)?;
     let mut new_springs = springs.clone();
     new_springs.set_rest_lengths(|i| network.rest_length(i))?;
-    if !new_springs.hinges().is_empty() {
+    // Rest angles and rest curvatures (and their fits' residual heights) measured anew.
+    if !new_springs.hinges().is_empty() || new_springs.curvature_count() > 0 {
         new_springs.set_rest_angles(points)?;
     }
     let mut new_masses = Masses::new(&network.masses)?;

@@ -430,6 +430,21 @@ impl Springs {
         Ok(())
     }
 
+    /// Every curvature-bending point's rest residual heights off its fitted quadric (the
+    /// stabilisation's; bakes and plastic flow move them), one per fitted neighbour, point
+    /// after point in the order given.
+    pub fn curvature_rest_residuals(&self) -> &[f32] {
+        self.curvatures.rest_residuals()
+    }
+
+    /// Sets the rest residual heights ([`Self::curvature_rest_residuals`]' layout);
+    /// refused, nothing changed, when their number differs or one is not finite.
+    pub fn set_curvature_rest_residuals(&mut self, residuals: &[f32]) -> Result<(), SolverError> {
+        self.curvatures.set_rest_residuals(residuals)?;
+        self.revision = next_revision();
+        Ok(())
+    }
+
     /// The hinges (bending; none unless set).
     pub fn hinges(&self) -> &Hinges {
         &self.hinges

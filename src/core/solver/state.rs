@@ -34,6 +34,11 @@ pub struct SolverState {
     /// order given (empty without curvature bending).
     #[serde(default)]
     pub curvatures: Vec<[f32; 5]>,
+    /// The curvature bending's rest residual heights, one per fitted neighbour (see
+    /// [`Springs::curvature_rest_residuals`]; empty without curvature bending, or from a
+    /// snapshot that predates them, which then keeps the surface's own).
+    #[serde(default)]
+    pub curvature_residuals: Vec<f32>,
     /// Every anchor slot as `(generation, anchor)`.
     pub anchor_slots: Vec<(u32, Option<Anchor>)>,
     /// The empty anchor slots, in the order they will be reused.
@@ -157,6 +162,7 @@ impl SolverState {
                 .iter()
                 .map(|c| [c.rest[0], c.rest[1], c.rest[2], c.modulus, c.damping])
                 .collect(),
+            curvature_residuals: parts.springs.curvature_rest_residuals().to_vec(),
             anchor_slots,
             free_anchor_slots,
             external: (0..parts.external.len())
@@ -254,6 +260,9 @@ impl SolverState {
         }
         if !state.curvatures.is_empty() {
             springs.set_curvature_parameters(|i| state.curvatures[i])?;
+        }
+        if !state.curvature_residuals.is_empty() {
+            springs.set_curvature_rest_residuals(&state.curvature_residuals)?;
         }
         let anchors = Anchors::from_slots(&state.anchor_slots, &state.free_anchor_slots, n)?;
         let mut external = ExternalForces::zeros(n);

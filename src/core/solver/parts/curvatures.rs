@@ -898,8 +898,31 @@ impl Curvatures {
         Ok(())
     }
 
-    /// Sets every rest curvature to the curvature at `points` (a bake); refused, nothing
-    /// changed, where a fan has collapsed there.
+    /// Every point's rest residual heights (the stabilisation's), one per fitted
+    /// neighbour, point after point.
+    pub(crate) fn rest_residuals(&self) -> &[f32] {
+        &self.rest_residual
+    }
+
+    /// Sets the rest residual heights ([`Self::rest_residuals`]' layout); refused, nothing
+    /// changed, when their number differs or one is not finite.
+    pub(crate) fn set_rest_residuals(&mut self, residuals: &[f32]) -> Result<(), SolverError> {
+        if residuals.len() != self.rest_residual.len() {
+            return Err(SolverError::InvalidConfig(
+                "the rest residual heights do not match the curvature bending's fits",
+            ));
+        }
+        if !residuals.iter().all(|r| r.is_finite()) {
+            return Err(SolverError::InvalidConfig(
+                "the rest residual heights must be finite",
+            ));
+        }
+        self.rest_residual.copy_from_slice(residuals);
+        Ok(())
+    }
+
+    /// Sets every rest curvature, and every rest residual height, to those at `points` (a
+    /// bake); refused, nothing changed, where a fan has collapsed there.
     pub(crate) fn set_rest_shape(&mut self, points: &PointState) -> Result<(), SolverError> {
         let mut rest = Vec::with_capacity(self.len());
         for c in 0..self.len() {
@@ -912,15 +935,42 @@ impl Curvatures {
             rest.push(self.curvature(c, &points.x, n));
         }
         self.rest = rest;
+        // The residual heights' rest too, or the stabilisation would pull the new shape back.
+        let mut residual = Vec::new();
+        for c in 0..self.len() {
+            if let Some((n, _)) = self.normal(c, &points.x) {
+                self.residual_at(c, &points.x, n, &mut residual);
+                let range = self.fit_start[c] as usize..self.fit_start[c + 1] as usize;
+                for (rest, r) in self.rest_residual[range].iter_mut().zip(&residual) {
+                    *rest = *r as f32;
+                }
+            }
+        }
         Ok(())
+    }
+
+    /// Point `c`'s residual heights off its fitted quadric at `x` with normal `n`, into
+    /// `out` (one per fitted neighbour).
+    fn residual_at(&self, c: usize, x: &Soa3, n: Vec3, out: &mut Vec<f64>) {
+        let xp = x.get(self.point[c] as usize);
+        let heights: Vec<f64> = self
+            .fit_of(c)
+            .0
+            .iter()
+            .map(|&j| f64::from(n.dot(x.get(j as usize) - xp)))
+            .collect();
+        *out = self.residual(c, &heights);
     }
 
     /// Plastic flow on the rest curvatures after a step: a point bent by more than
     /// `yield_angle`/√A (the bend that turns its normal by about `yield_angle` across its
     /// own size) moves its rest curvature `fraction` of the way to where the bend would be
-    /// that. Returns how many points flowed.
+    /// that, and its rest residual heights (the stabilisation's) the same share of the way
+    /// to the present ones, so that the whole bent shape is kept. Returns how many points
+    /// flowed.
     pub(crate) fn flow(&mut self, points: &PointState, yield_angle: f32, fraction: f32) -> usize {
         let mut flowed = 0;
+        let mut residual = Vec::new();
         for c in 0..self.len() {
             let Some(ds) = self.bend(c, points) else {
                 continue;
@@ -933,6 +983,13 @@ impl Curvatures {
             let excess = fraction * (1.0 - limit / size);
             for (rest, d) in self.rest[c].iter_mut().zip(ds) {
                 *rest += excess * d;
+            }
+            if let Some((n, _)) = self.normal(c, &points.x) {
+                self.residual_at(c, &points.x, n, &mut residual);
+                let range = self.fit_start[c] as usize..self.fit_start[c + 1] as usize;
+                for (rest, r) in self.rest_residual[range].iter_mut().zip(&residual) {
+                    *rest += excess * (*r as f32 - *rest);
+                }
             }
             flowed += 1;
         }
