@@ -60,8 +60,8 @@ pub mod prelude {
     pub use crate::core::scene::{Scene, SceneError, SceneRun};
     pub use crate::core::simplify::{SimplifyConfig, simplify, simplify_cloud};
     pub use crate::core::solver::{
-        Anchor, AnchorId, DampingModel, Instability, InstabilityResponse, Integrator, Solver,
-        SolverConfig, SolverError, SpringMaterial, SpringSpec, SubstepPolicy,
+        Anchor, AnchorId, BendingModel, DampingModel, Instability, InstabilityResponse, Integrator,
+        Solver, SolverConfig, SolverError, SpringMaterial, SpringSpec, SubstepPolicy,
     };
     pub use crate::core::transfer::resample::ResampleConfig;
     pub use crate::core::transfer::{NormalUpdate, Transfer, TransferConfig, TransferError};

@@ -58,12 +58,29 @@ fn bounds(app: &App, surface: Entity) -> (Vec3, Vec3, Vec3) {
 
 #[test]
 fn every_scan_at_default_settings_falls_onto_a_floor_and_takes_a_grab() {
+    assert_every_scan_falls_and_takes_a_grab(&SurfaceConfig::default());
+}
+
+/// The same on the fitted curvature (not the default; run on demand, as it doubles the
+/// test's time: `cargo test --release --features cli,egui,rapier --test scans --
+/// --ignored --nocapture`).
+#[test]
+#[ignore = "on demand: the default's test already takes a minute"]
+fn every_scan_on_its_curvature_falls_onto_a_floor_and_takes_a_grab() {
+    let mut config = SurfaceConfig::default();
+    config.material.bending = BendingModel::Curvature;
+    assert_every_scan_falls_and_takes_a_grab(&config);
+}
+
+/// Each scan spawned with `config` over a floor falls onto it and takes a grab, with no
+/// guard trip and no unhealthy episode.
+fn assert_every_scan_falls_and_takes_a_grab(config: &SurfaceConfig) {
     for (name, real) in SCANS {
         let mut app = rapier_app::create_app();
         let cloud = read_cloud(&std::path::Path::new("assets").join(name), None).unwrap();
         let surface = app
             .world_mut()
-            .spawn(DeformableSurface::cloud(cloud, SurfaceConfig::default()))
+            .spawn(DeformableSurface::cloud(cloud, config.clone()))
             .id();
         ready(&mut app, surface);
         let (lo, hi, start) = bounds(&app, surface);
