@@ -80,7 +80,7 @@ fn assert_every_scan_falls_and_takes_a_grab(config: &SurfaceConfig) {
         let cloud = read_cloud(&std::path::Path::new("assets").join(name), None).unwrap();
         let surface = app
             .world_mut()
-            .spawn(DeformableSurface::cloud(cloud, config.clone()))
+            .spawn(DeformableSurface::cloud(cloud, *config))
             .id();
         ready(&mut app, surface);
         let (lo, hi, start) = bounds(&app, surface);
