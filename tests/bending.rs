@@ -153,9 +153,9 @@ fn a_cantilever_on_hinges_sags_as_euler_bernoulli_says_at_every_spacing() {
 
 #[test]
 fn a_cantilever_on_its_curvature_sags_as_euler_bernoulli_says_at_every_spacing() {
-    // Measured 2026-12-04: −4.6 % against Euler–Bernoulli, −1.8 % at a quarter of the
+    // Measured 2026-12-04: −4.7 % against Euler–Bernoulli, −1.8 % at a quarter of the
     // points; at a tenth (75 points, five rows across the strip, most of them on its edges,
-    // whose fits are one-sided) −7.5 %, so that level is held to 10 %.
+    // whose fits are one-sided) −7.4 %, so that level is held to 10 %.
     assert_cantilever_converges(
         BendingModel::Curvature,
         CURVATURE_POISSON_RATIO,

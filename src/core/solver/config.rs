@@ -427,9 +427,10 @@ impl SpringMaterial {
 
     /// The network's curvature bending with this material's modulus and damping
     /// ([`BendingModel::Curvature`]; none with another model): one at every point whose ring
-    /// gives a normal and a fit, fitted to its ring, or to its ring and its ring's rings
-    /// where the ring has fewer than [`MIN_FIT_POINTS`] or admits no fit. A point with
-    /// neither bears none.
+    /// gives a normal and a fit, fitted to its ring, or where the ring has fewer than
+    /// [`MIN_FIT_POINTS`] or admits no fit, to its ring and the nearest of its ring's rings'
+    /// points, [`WIDE_FIT_POINTS`] in all (to all of them if those admit none). A point with
+    /// none bears none.
     pub fn curvatures(&self, network: &SpringNetwork) -> Vec<CurvatureSpec> {
         if self.bending != BendingModel::Curvature {
             return Vec::new();
@@ -474,10 +475,22 @@ impl SpringMaterial {
                     }
                     .measured(&network.positions)
                 };
+                // The ring, then the nearest of its rings' points: WIDE_FIT_POINTS in all.
+                let nearest = || {
+                    let mut fit = wider();
+                    let centre = network.positions[i];
+                    let distance =
+                        |j: &u32| network.positions[*j as usize].distance_squared(centre);
+                    fit[fan.len()..].sort_by(|a, b| distance(a).total_cmp(&distance(b)));
+                    fit.truncate(WIDE_FIT_POINTS.max(fan.len()));
+                    fit
+                };
                 if fan.len() >= MIN_FIT_POINTS {
-                    spec(fan.clone()).or_else(|| spec(wider()))
+                    spec(fan.clone())
+                        .or_else(|| spec(nearest()))
+                        .or_else(|| spec(wider()))
                 } else {
-                    spec(wider())
+                    spec(nearest()).or_else(|| spec(wider()))
                 }
             })
             .collect()

@@ -22,7 +22,7 @@ pub use couplings::CouplingSpec;
 pub(crate) use couplings::{COUPLED_PAIRS, CouplingBlock, Couplings};
 pub use curvatures::{
     CURVATURE_STABILISATION, CurvatureSpec, DEGENERATE_FAN, FIT_CONDITION, MIN_FIT_POINTS,
-    fit_weights,
+    WIDE_FIT_POINTS, fit_weights,
 };
 pub(crate) use curvatures::{CurvatureBlock, Curvatures};
 pub(crate) use hinges::HingeBlock;

@@ -42,6 +42,15 @@ use crate::core::solver::SolverError;
 /// pass through the fit unfiltered. A ring with fewer borrows its neighbours' rings.
 pub const MIN_FIT_POINTS: usize = 6;
 
+/// How many neighbours a fit that borrows its ring's rings takes: the ring, then the nearest
+/// (at rest) of the ring's rings' points, this many in all. About a third of a §3 network's
+/// points have rings of four or five; fitted over all of their rings' rings (about 17
+/// points) they bent at a wider scale than their six-ring neighbours and the coarse spheres
+/// of `bench convergence` were up to 6.9 % stiff. Measured there (2026-12-04), the largest
+/// error from 5 % to 50 % of the points over the four problems: 7 points 6.5 % (soft),
+/// 9: 5.0 %, 11: 4.4 %, 12: 4.0 %, 13: 4.5 %, all of them: 6.9 % (stiff).
+pub const WIDE_FIT_POINTS: usize = 12;
+
 /// A fit whose normal equations have a pivot below this share of their largest diagonal
 /// entry (neighbours on one line, say) is refused.
 pub const FIT_CONDITION: f64 = 1.0e-6;
