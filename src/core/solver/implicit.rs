@@ -296,7 +296,7 @@ struct System<'a> {
 
 impl System<'_> {
     /// Whether the step bends on hinges or curvature: a matrix whose block Jacobi
-    /// preconditioner leaves a solve 1.5–2.6 times the iterations of symmetric Gauss–Seidel
+    /// preconditioner leaves a solve 1.4–2.5 times the iterations of symmetric Gauss–Seidel
     /// (see [`JACOBI_ITERATIONS`]).
     fn bends(&self) -> bool {
         !self.hinges.is_empty() || !self.curvature_blocks.is_empty()
@@ -725,8 +725,8 @@ fn conjugate_gradient(
 /// bend springs +8 % (+6 % after 8, +5 % after 16, +3 % with Gauss–Seidel throughout), with
 /// hinges −18 % (−20 %, −15 %, −24 % throughout). So hinges and curvature bending
 /// ([`System::bends`]) take Gauss–Seidel from the start: `bench plugin --dense 100000
-/// --sim 2000` (2026-12-04, one run each) 26.2 → 19.3 CG iterations a step with hinges, and
-/// with curvature 20.6 → 13.2 (34.5 before its stencils joined the sweeps).
+/// --sim 2000` (2026-12-04, one run each) 26.2 → 18.5 CG iterations a step with hinges, and
+/// with curvature 20.6 → 12.3 (34.5 before its stencils joined the sweeps).
 const JACOBI_ITERATIONS: u32 = 12;
 
 /// z = P⁻¹·r in `s`: symmetric Gauss–Seidel, or block Jacobi (each point's whole 3×3

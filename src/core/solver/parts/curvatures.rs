@@ -243,7 +243,8 @@ fn full_fit(
 pub const CURVATURE_STABILISATION: f32 = 30.0;
 
 /// The most fitted neighbours whose heights an implicit product keeps on the stack (the
-/// ring's rings have about 15; wider fits compute them twice).
+/// network's fits have 6 to [`WIDE_FIT_POINTS`], or all of the rings' rings where those
+/// admit none; wider custom fits compute them twice).
 const BUFFERED_HEIGHTS: usize = 48;
 
 /// The fitted height Φⱼ·coefficients at one neighbour.
@@ -945,10 +946,9 @@ impl Curvatures {
         }
         self.rest = rest;
         // The residual heights' rest too, or the stabilisation would pull the new shape back.
-        let mut residual = Vec::new();
         for c in 0..self.len() {
             if let Some((n, _)) = self.normal(c, &points.x) {
-                self.residual_at(c, &points.x, n, &mut residual);
+                let residual = self.residual_at(c, &points.x, n);
                 let range = self.fit_start[c] as usize..self.fit_start[c + 1] as usize;
                 for (rest, r) in self.rest_residual[range].iter_mut().zip(&residual) {
                     *rest = *r as f32;
@@ -958,9 +958,9 @@ impl Curvatures {
         Ok(())
     }
 
-    /// Point `c`'s residual heights off its fitted quadric at `x` with normal `n`, into
-    /// `out` (one per fitted neighbour).
-    fn residual_at(&self, c: usize, x: &Soa3, n: Vec3, out: &mut Vec<f64>) {
+    /// Point `c`'s residual heights off its fitted quadric at `x` with normal `n` (one per
+    /// fitted neighbour).
+    fn residual_at(&self, c: usize, x: &Soa3, n: Vec3) -> Vec<f64> {
         let xp = x.get(self.point[c] as usize);
         let heights: Vec<f64> = self
             .fit_of(c)
@@ -968,7 +968,7 @@ impl Curvatures {
             .iter()
             .map(|&j| f64::from(n.dot(x.get(j as usize) - xp)))
             .collect();
-        *out = self.residual(c, &heights);
+        self.residual(c, &heights)
     }
 
     /// Plastic flow on the rest curvatures after a step: a point bent by more than
@@ -979,7 +979,6 @@ impl Curvatures {
     /// flowed.
     pub(crate) fn flow(&mut self, points: &PointState, yield_angle: f32, fraction: f32) -> usize {
         let mut flowed = 0;
-        let mut residual = Vec::new();
         for c in 0..self.len() {
             let Some(ds) = self.bend(c, points) else {
                 continue;
@@ -994,7 +993,7 @@ impl Curvatures {
                 *rest += excess * d;
             }
             if let Some((n, _)) = self.normal(c, &points.x) {
-                self.residual_at(c, &points.x, n, &mut residual);
+                let residual = self.residual_at(c, &points.x, n);
                 let range = self.fit_start[c] as usize..self.fit_start[c + 1] as usize;
                 for (rest, r) in self.rest_residual[range].iter_mut().zip(&residual) {
                     *rest += excess * (*r as f32 - *rest);
