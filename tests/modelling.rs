@@ -233,13 +233,7 @@ fn a_baked_shape_stays_put() {
     // The transfer gives the rest surface back to its coefficients' rounding (as it does
     // for a surface just prepared).
     surface.dense.follow(&surface.solver.points).unwrap();
-    let off = surface
-        .dense
-        .positions()
-        .iter()
-        .zip(&dense_rest)
-        .map(|(a, b)| a.distance(*b))
-        .fold(0.0f32, f32::max);
+    let off = farthest(surface.dense.positions(), &dense_rest);
     assert!(off < 1e-5, "the dense surface moved by {off}");
     // The masses are the pulled shape's: its area grew, and the mass with it (each point's
     // share of the dense area grown with its region; density 1).
@@ -280,13 +274,7 @@ fn a_baked_shape_on_hinges_stays_put() {
     for _ in 0..60 {
         surface.solver.step(DT).unwrap();
     }
-    let moved = surface
-        .solver
-        .positions()
-        .iter()
-        .zip(&pulled)
-        .map(|(a, b)| a.distance(*b))
-        .fold(0.0f32, f32::max);
+    let moved = farthest(&surface.solver.positions(), &pulled);
     assert!(moved < 1e-6, "a point moved {moved}");
     assert!(surface.solver.energy().bending < 1e-12);
 }
@@ -304,14 +292,16 @@ fn a_baked_shape_on_its_curvature_stays_put() {
     for _ in 0..60 {
         surface.solver.step(DT).unwrap();
     }
-    let moved = surface
-        .solver
-        .positions()
-        .iter()
-        .zip(&pulled)
-        .map(|(a, b)| a.distance(*b))
-        .fold(0.0f32, f32::max);
+    let moved = farthest(&surface.solver.positions(), &pulled);
     assert!(moved < 1e-6, "a point moved {moved}");
+}
+
+/// The largest distance between the points of `a` and those of `b`, pairwise.
+fn farthest(a: &[Vec3], b: &[Vec3]) -> f32 {
+    a.iter()
+        .zip(b)
+        .map(|(a, b)| a.distance(*b))
+        .fold(0.0f32, f32::max)
 }
 
 /// The baked network's area over the area of the unit sphere's network it came from.

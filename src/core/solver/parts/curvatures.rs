@@ -1201,6 +1201,19 @@ mod tests {
         let line: Vec<Vec3> = (1..8).map(|i| Vec3::X * i as f32).collect();
         assert!(fit_weights(Vec3::ZERO, Vec3::Z, &line).is_none());
         let flat: Vec<Vec3> = rest.iter().map(|p| Vec3::new(p.x, 0.0, 0.0)).collect();
-        assert!(Curvatures::new(&[good], &flat).is_err());
+        assert!(Curvatures::new(std::slice::from_ref(&good), &flat).is_err());
+        // Rest residual heights (a snapshot's) of the wrong number, or not finite: refused,
+        // nothing changed.
+        let mut part = Curvatures::new(&[good], &rest).unwrap();
+        let kept = part.rest_residuals().to_vec();
+        let mut nan = kept.clone();
+        nan[0] = f32::NAN;
+        for bad in [&kept[1..], &nan[..]] {
+            assert!(matches!(
+                part.set_rest_residuals(bad),
+                Err(SolverError::InvalidConfig(_))
+            ));
+            assert_eq!(part.rest_residuals(), &kept[..]);
+        }
     }
 }
