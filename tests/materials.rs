@@ -359,7 +359,7 @@ fn a_plate_bending_on_its_curvature_sags_as_navier_says_on_an_uneven_network() {
     // A lattice of spacing 0.04 simplified by §3 to an uneven network of 740 points, pinned
     // along its rim: a simply supported plate. Hinges measure the fold where the flat
     // triangles meet, which depends on how the mesh is cut (−14 % here, measured; −26 % at
-    // 1465 points); the fitted curvature, stabilised, does not (−0.8 %).
+    // 1465 points); the fitted curvature, stabilised, does not (−0.5 %).
     let exact = navier_mean_deflection(0.2 * 9.81, 2.0, 3.0) as f32;
     let uneven = sheet_sag(0.04, Some(740), BendingModel::Curvature);
     eprintln!("plate: Navier {exact:.5}, curvature on 740 uneven points {uneven:.5}");
