@@ -429,8 +429,8 @@ impl SpringMaterial {
     /// ([`BendingModel::Curvature`]; none with another model): one at every point whose ring
     /// gives a normal and a fit, fitted to its ring, or where the ring has fewer than
     /// [`MIN_FIT_POINTS`] or admits no fit, to its ring and the nearest of its ring's rings'
-    /// points, [`WIDE_FIT_POINTS`] in all (to all of them if those admit none). A point with
-    /// none bears none.
+    /// points, [`WIDE_FIT_POINTS`] in all (to all of them if those admit none; never more
+    /// than the nearest [`MAX_FIT_POINTS`]). A point with none bears none.
     pub fn curvatures(&self, network: &SpringNetwork) -> Vec<CurvatureSpec> {
         if self.bending != BendingModel::Curvature {
             return Vec::new();
@@ -460,7 +460,13 @@ impl SpringMaterial {
                     }
                     fit
                 };
-                let spec = |fit: Vec<u32>| {
+                let centre = network.positions[i];
+                let distance = |j: &u32| network.positions[*j as usize].distance_squared(centre);
+                let spec = |mut fit: Vec<u32>| {
+                    if fit.len() > MAX_FIT_POINTS {
+                        fit.sort_by(|a, b| distance(a).total_cmp(&distance(b)));
+                        fit.truncate(MAX_FIT_POINTS);
+                    }
                     CurvatureSpec {
                         point: i as u32,
                         fan: fan.clone(),
@@ -478,9 +484,6 @@ impl SpringMaterial {
                 // The ring, then the nearest of its rings' points: WIDE_FIT_POINTS in all.
                 let nearest = || {
                     let mut fit = wider();
-                    let centre = network.positions[i];
-                    let distance =
-                        |j: &u32| network.positions[*j as usize].distance_squared(centre);
                     fit[fan.len()..].sort_by(|a, b| distance(a).total_cmp(&distance(b)));
                     fit.truncate(WIDE_FIT_POINTS.max(fan.len()));
                     fit

@@ -99,8 +99,8 @@ use parts::non_negative;
 pub use parts::{
     Anchors, CURVATURE_STABILISATION, CouplingSpec, CurvatureSpec, DEGENERATE_FAN,
     DEGENERATE_HEIGHT, ExternalForces, FIT_CONDITION, HingeGeometry, HingeSpec, Hinges,
-    MIN_FIT_POINTS, Masses, PointState, Pressure, Springs, WIDE_FIT_POINTS, angle_difference,
-    fit_weights, hold_still,
+    MAX_FIT_POINTS, MIN_FIT_POINTS, Masses, PointState, Pressure, Springs, WIDE_FIT_POINTS,
+    angle_difference, fit_weights, hold_still,
 };
 pub use report::{Diagnostics, Energy, Instability, SolverError, Stability, StepReport};
 pub use springs::{COINCIDENT_DISTANCE, SpringSpec};

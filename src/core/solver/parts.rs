@@ -21,8 +21,8 @@ pub use anchors::Anchors;
 pub use couplings::CouplingSpec;
 pub(crate) use couplings::{COUPLED_PAIRS, CouplingBlock, Couplings};
 pub use curvatures::{
-    CURVATURE_STABILISATION, CurvatureSpec, DEGENERATE_FAN, FIT_CONDITION, MIN_FIT_POINTS,
-    WIDE_FIT_POINTS, fit_weights,
+    CURVATURE_STABILISATION, CurvatureSpec, DEGENERATE_FAN, FIT_CONDITION, MAX_FIT_POINTS,
+    MIN_FIT_POINTS, WIDE_FIT_POINTS, fit_weights,
 };
 pub(crate) use curvatures::{CurvatureBlock, Curvatures};
 pub(crate) use hinges::HingeBlock;

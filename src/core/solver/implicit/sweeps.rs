@@ -32,9 +32,6 @@ use glam::{DMat3, DVec3};
 use super::{Sym3, System};
 use crate::core::solver::parts::COUPLED_PAIRS;
 
-/// A curvature stencil's pair that no spring or hinge couples: left out of the sweeps.
-const NO_SLOT: u32 = u32::MAX;
-
 /// The widest curvature stencil whose pairs join the sweeps (wider ones, only from custom
 /// specs, keep their diagonal blocks alone, so the pattern's bookkeeping stays bounded).
 const MAX_COUPLED_STENCIL: usize = 49;
@@ -64,9 +61,11 @@ pub(crate) struct GaussSeidel {
     /// The block each spring adds to, and each hinge's pairs ([`HINGE_PAIRS`]).
     spring_slot: Vec<u32>,
     hinge_slot: Vec<[u32; 6]>,
-    /// The block each curvature stencil's pair adds to, in `Curvatures::pairs`'s order
-    /// ([`NO_SLOT`] where no spring or hinge couples the two points).
-    curvature_slot: Vec<u32>,
+    /// Per curvature stencil (from `curvature_coupled_start`), its pairs that a spring or a
+    /// hinge couples: the block each adds to and where its entry is in
+    /// `Curvatures::pair_values`.
+    curvature_coupled: Vec<(u32, u32)>,
+    curvature_coupled_start: Vec<u32>,
     /// Whether the blocks hold this step's matrix.
     assembled: bool,
     /// The forward sweep's result, and the backward sweep's sums.
@@ -129,20 +128,27 @@ impl GaussSeidel {
         // Every spring's and hinge's pair was put in its row above, so the search finds it.
         let slot = |i: u32, j: u32| find(i, j).unwrap_or(0);
         let curvatures = system.curvatures;
-        let mut curvature_slot = Vec::new();
+        let mut coupled = Vec::new();
+        let mut coupled_start = vec![0];
         for c in 0..curvatures.len() {
             let stencil: Vec<u32> = curvatures.stencil(c).collect();
             if stencil.len() <= MAX_COUPLED_STENCIL {
+                let mut at = 0;
                 curvatures.pairs(c, 1.0, |a, b, _| {
-                    curvature_slot.push(find(stencil[a], stencil[b]).unwrap_or(NO_SLOT));
+                    if let Some(slot) = find(stencil[a], stencil[b]) {
+                        coupled.push((slot, at));
+                    }
+                    at += 1;
                 });
             }
+            coupled_start.push(coupled.len() as u32);
         }
         let (point, start, fit) = curvatures.topology();
         self.curvature_point = point.to_vec();
         self.curvature_start = start.to_vec();
         self.curvature_fit = fit.to_vec();
-        self.curvature_slot = curvature_slot;
+        self.curvature_coupled = coupled;
+        self.curvature_coupled_start = coupled_start;
         self.spring_slot = (0..springs)
             .map(|s| slot(self.a_end[s], self.b_end[s]))
             .collect();
@@ -202,25 +208,20 @@ impl GaussSeidel {
     /// (`Curvatures::pairs`).
     fn add_curvatures(&mut self, system: &System<'_>) {
         let curvatures = system.curvatures;
-        let (slots, blocks) = (&self.curvature_slot, &mut self.block);
-        let mut at = 0;
-        for (c, held) in system.curvature_blocks.iter().enumerate() {
-            let len = curvatures.stencil_len(c);
-            if len > MAX_COUPLED_STENCIL {
-                continue;
-            }
+        let starts = self.curvature_coupled_start.windows(2);
+        for ((c, held), range) in system.curvature_blocks.iter().enumerate().zip(starts) {
             let n = held.normal;
             if n == DVec3::ZERO {
-                at += len * (len - 1) / 2;
                 continue;
             }
             let outer = DMat3::from_cols(n * n.x, n * n.y, n * n.z);
-            curvatures.pairs(c, held.scale, |_, _, m| {
-                if let Some(&slot) = slots.get(at).filter(|&&s| s != NO_SLOT) {
-                    blocks[slot as usize] += outer * m;
-                }
-                at += 1;
-            });
+            let (factor, values) = (
+                held.scale * curvatures.modulus(c),
+                curvatures.pair_values(c),
+            );
+            for &(slot, at) in &self.curvature_coupled[range[0] as usize..range[1] as usize] {
+                self.block[slot as usize] += outer * (factor * values[at as usize]);
+            }
         }
     }
 

@@ -250,10 +250,11 @@ fn full_fit(
 /// heights are in its interior neighbours' fits, which stabilise them.
 pub const CURVATURE_STABILISATION: f32 = 30.0;
 
-/// The most fitted neighbours whose heights an implicit product keeps on the stack (the
-/// network's fits have 6 to [`WIDE_FIT_POINTS`], or all of the rings' rings where those
-/// admit none; wider custom fits compute them twice).
-const BUFFERED_HEIGHTS: usize = 48;
+/// The most neighbours a fit may take: a point's implicit matrix has about n²/2 entries
+/// and a product keeps its n heights on the stack. The network's fits have 6 to
+/// [`WIDE_FIT_POINTS`] (all of the rings' rings where those admit none, the nearest this
+/// many of them); a spec with more is refused.
+pub const MAX_FIT_POINTS: usize = 64;
 
 /// The fitted height Φⱼ·coefficients at one neighbour.
 #[inline]
@@ -314,10 +315,16 @@ pub(crate) struct Curvatures {
     rest_residual: Vec<f32>,
     /// The stabilisation's stiffness over the modulus, γ·A/ℓ⁴, per point.
     hourglass: Vec<f32>,
-    /// Per fitted neighbour, (I − ΦP)ⱼⱼ; per point, 1ᵀ(I − ΦP)1: the stabilisation's
-    /// diagonal blocks, which depend only on the rest shape.
-    projector_diagonal: Vec<f64>,
-    projector_sum: Vec<f64>,
+    /// Per point, the implicit step's matrix over its stencil per unit of modulus: with
+    /// M = A·WᵀK̂W + (γ·A/ℓ⁴)·(I − ΦP) over its n neighbours' heights (K̂: the plate's form
+    /// of unit stiffness), its pairs' entries in [`Self::pairs`]'s order (Mₐ_b for a < b,
+    /// then each neighbour's with the centre, minus M's column sums: n·(n + 1)/2 from
+    /// `pair_start`), and its diagonal entries (each Mⱼⱼ, then the centre's 1ᵀM1: n + 1
+    /// from `fit_start[c] + c`). They depend on the rest shape alone (the modulus scales
+    /// them), so the preconditioner reads its blocks rather than computing them every step.
+    pair_values: Vec<f64>,
+    pair_start: Vec<u32>,
+    diagonal_values: Vec<f64>,
 }
 
 /// One point's curvature in an implicit step (see [`Curvatures::linearised`]).
@@ -339,6 +346,7 @@ impl Curvatures {
         let mut part = Self {
             fan_start: vec![0],
             fit_start: vec![0],
+            pair_start: vec![0],
             ..Self::default()
         };
         for (at, s) in specs.iter().enumerate() {
@@ -354,6 +362,9 @@ impl Curvatures {
                 return Err(bad(
                     "it needs a fan of two or more and one weight per fitted neighbour",
                 ));
+            }
+            if s.fit.len() > MAX_FIT_POINTS {
+                return Err(bad("it fits more neighbours than MAX_FIT_POINTS"));
             }
             let finite = s
                 .weights
@@ -399,22 +410,38 @@ impl Curvatures {
                 0.0
             };
             part.hourglass.push(hourglass as f32);
-            // Stored in f32; the projector's constants from the stored values, so that they
-            // are the products' own.
+            // Stored in f32; the products' and the matrix's constants from the stored values,
+            // so that they are the force's own.
             let pf: Vec<[f32; 5]> = pf.iter().map(|w| w.map(|x| x as f32)).collect();
             let phi: Vec<[f32; 5]> = phi.iter().map(|w| w.map(|x| x as f32)).collect();
-            let dot5 =
-                |a: &[f32; 5], b: [f64; 5]| (0..5).map(|k| f64::from(a[k]) * b[k]).sum::<f64>();
-            let p_sum = pf.iter().fold([0.0f64; 5], |acc, w| {
-                [0, 1, 2, 3, 4].map(|k| acc[k] + f64::from(w[k]))
-            });
-            part.projector_diagonal.extend(
-                phi.iter()
-                    .zip(&pf)
-                    .map(|(r, w)| 1.0 - dot5(r, w.map(f64::from))),
-            );
-            let fitted_ones: f64 = phi.iter().map(|r| dot5(r, p_sum)).sum();
-            part.projector_sum.push(phi.len() as f64 - fitted_ones);
+            let hourglass = f64::from(hourglass as f32);
+            let (area, nu) = (f64::from(s.area), f64::from(s.poisson));
+            // Mₐ_b for a ≤ b (with Φₐ·P_b: I − ΦP is symmetric but for the rounding).
+            let m = s.fit.len();
+            let entry = |a: usize, b: usize| {
+                let kw = form(area, nu, s.weights[a].map(f64::from));
+                let identity = if a == b { 1.0 } else { 0.0 };
+                dot3(s.weights[b].map(f64::from), kw)
+                    + hourglass * (identity - fitted(&phi[a], &pf[b].map(f64::from)))
+            };
+            let mut column_sums = vec![0.0f64; m];
+            let mut all = 0.0;
+            for a in 0..m {
+                let diagonal = entry(a, a);
+                part.diagonal_values.push(diagonal);
+                column_sums[a] += diagonal;
+                all += diagonal;
+                for b in a + 1..m {
+                    let e = entry(a, b);
+                    part.pair_values.push(e);
+                    column_sums[a] += e;
+                    column_sums[b] += e;
+                    all += 2.0 * e;
+                }
+            }
+            part.diagonal_values.push(all);
+            part.pair_values.extend(column_sums.iter().map(|s| -s));
+            part.pair_start.push(part.pair_values.len() as u32);
             for ((w, q), r) in s.weights.iter().zip(&pf).zip(&phi) {
                 let mut gather = [0.0f64; 8];
                 let mut scatter = [0.0f64; 8];
@@ -563,16 +590,29 @@ impl Curvatures {
             *out = n;
             let p = self.point[c] as usize;
             let (fit, weights) = self.fit_of(c);
-            let s = self.curvature(c, x, n);
-            let ds = [0, 1, 2].map(|k| s[k] - self.rest[c][k]);
-            let mut rate = [0.0f32; 3];
-            let vp = v.get(p);
-            for (&j, w) in fit.iter().zip(weights) {
-                let r = n.dot(v.get(j as usize) - vp);
+            let range = self.fit_start[c] as usize..self.fit_start[c + 1] as usize;
+            let (pf, phi) = (&self.p_full[range.clone()], &self.phi[range.clone()]);
+            let rest_residual = &self.rest_residual[range];
+            let kh = self.stab_stiffness(c);
+            // One pass for the neighbours' offsets (kept), the curvature S, its rate and the
+            // fit's coefficients.
+            let (xp, vp) = (x.get(p), v.get(p));
+            let mut offsets = [Vec3::ZERO; MAX_FIT_POINTS];
+            let (mut s, mut rate, mut coef) = ([0.0f32; 3], [0.0f32; 3], [0.0f64; 5]);
+            for (((&j, w), q), d) in fit.iter().zip(weights).zip(pf).zip(&mut offsets) {
+                *d = x.get(j as usize) - xp;
+                let (h, r) = (n.dot(*d), n.dot(v.get(j as usize) - vp));
                 for k in 0..3 {
+                    s[k] += w[k] * h;
                     rate[k] += w[k] * r;
                 }
+                if kh > 0.0 {
+                    for (c, q) in coef.iter_mut().zip(q) {
+                        *c += f64::from(*q) * f64::from(h);
+                    }
+                }
             }
+            let ds = [0, 1, 2].map(|k| s[k] - self.rest[c][k]);
             let (k, nu) = (self.stiffness(c), self.poisson[c]);
             let elastic = form(k, nu, ds);
             let damping = form(k * self.damping[c], nu, rate);
@@ -581,20 +621,16 @@ impl Curvatures {
             let mut on_p = 0.0f32;
             // ∂E/∂n = Σⱼ (wⱼ·K·ΔS)·(xⱼ − p), the elastic part only.
             let mut de_dn = Vec3::ZERO;
-            let xp = x.get(p);
-            let kh = self.stab_stiffness(c);
-            let height = |j: u32| f64::from(n.dot(x.get(j as usize) - xp));
-            let coef = if kh > 0.0 {
-                self.coefficients(c, height)
-            } else {
-                [0.0; 5]
-            };
-            let range = self.fit_start[c] as usize..self.fit_start[c + 1] as usize;
-            let (phi, rest_residual) = (&self.phi[range.clone()], &self.rest_residual[range]);
-            for (((&j, w), row), r0) in fit.iter().zip(weights).zip(phi).zip(rest_residual) {
+            for ((((&j, w), row), r0), d) in fit
+                .iter()
+                .zip(weights)
+                .zip(phi)
+                .zip(rest_residual)
+                .zip(&offsets)
+            {
                 // The stabilisation's k_h·(rⱼ − r̄ⱼ).
                 let s = if kh > 0.0 {
-                    kh * ((height(j) - fitted(row, &coef)) as f32 - r0)
+                    kh * ((f64::from(n.dot(*d)) - fitted(row, &coef)) as f32 - r0)
                 } else {
                     0.0
                 };
@@ -602,7 +638,7 @@ impl Curvatures {
                 let g = dot3(*w, stress) + s;
                 f.set(j, f.get(j) - g * n);
                 on_p += g;
-                de_dn += (dot3(*w, elastic) + s) * (x.get(j) - xp);
+                de_dn += (dot3(*w, elastic) + s) * *d;
             }
             // Through the normal: ∂E/∂N = (I − nnᵀ)·∂E/∂n / |N|, and N = Σ aⱼ × bⱼ.
             let w_hat = (de_dn - de_dn.dot(n) * n) / len;
@@ -670,16 +706,12 @@ impl Curvatures {
         let fit = &self.fit[range.clone()];
         let (gather, scatter) = (&self.gather_row[range.clone()], &self.scatter_row[range]);
         // Pass 1: the curvature change J·p and the fit's coefficients P·Jₕ·p together; the
-        // heights are kept for pass 2 where the fit is small enough (it is, but for wide
-        // custom fits).
-        let mut heights = [0.0f64; BUFFERED_HEIGHTS];
-        let buffered = fit.len() <= BUFFERED_HEIGHTS;
+        // heights are kept for pass 2 (a fit has at most MAX_FIT_POINTS).
+        let mut heights = [0.0f64; MAX_FIT_POINTS];
         let mut sums = [0.0f64; 8];
         for (i, (&j, row)) in fit.iter().zip(gather).enumerate() {
             let h = n.dot(p[j as usize] - centre);
-            if buffered {
-                heights[i] = h;
-            }
+            heights[i] = h;
             for (s, r) in sums.iter_mut().zip(row) {
                 *s += r * h;
             }
@@ -693,11 +725,7 @@ impl Curvatures {
         }
         let mut on_p = 0.0;
         for (i, (&j, row)) in fit.iter().zip(scatter).enumerate() {
-            let h = if buffered {
-                heights[i]
-            } else {
-                n.dot(p[j as usize] - centre)
-            };
+            let h = heights[i];
             let g = row.iter().zip(&u).map(|(r, u)| r * u).sum::<f64>() + kh * h;
             y[j as usize] += g * n;
             on_p += g;
@@ -729,41 +757,27 @@ impl Curvatures {
     /// diagonal); the point itself (position last) moves all heights by −1, so its column
     /// is minus the sum of the neighbours' columns.
     pub(crate) fn pairs(&self, c: usize, scale: f64, mut f: impl FnMut(usize, usize, f64)) {
-        let range = self.fit_start[c] as usize..self.fit_start[c + 1] as usize;
-        let weights = &self.weights[range.clone()];
-        let (pf, phi) = (&self.p_full[range.clone()], &self.phi[range]);
-        let (k, nu) = (
-            f64::from(self.stiffness(c)) * scale,
-            f64::from(self.poisson[c]),
-        );
-        let kh = f64::from(self.stab_stiffness(c)) * scale;
-        let m = weights.len();
-        let mut weight_sum = [0.0f64; 3];
-        let mut phi_sum = [0.0f64; 5];
-        for (w, row) in weights.iter().zip(phi) {
-            for (s, w) in weight_sum.iter_mut().zip(w) {
-                *s += f64::from(*w);
-            }
-            for (s, r) in phi_sum.iter_mut().zip(row) {
-                *s += f64::from(*r);
-            }
-        }
+        let m = self.stencil_len(c) - 1;
+        let factor = scale * self.modulus(c);
+        let mut values = self.pair_values(c).iter();
         for a in 0..m {
-            let wa = weights[a].map(f64::from);
-            for b in a + 1..m {
-                let kw = form(k, nu, weights[b].map(f64::from));
-                f(
-                    a,
-                    b,
-                    dot3(wa, kw) - kh * fitted(&phi[a], &pf[b].map(f64::from)),
-                );
+            for (b, e) in (a + 1..m).zip(values.by_ref()) {
+                f(a, b, factor * e);
             }
         }
-        for (b, (w, q)) in weights.iter().zip(pf).enumerate() {
-            let kw = form(k, nu, w.map(f64::from));
-            let fitted_sum: f64 = q.iter().zip(phi_sum).map(|(q, s)| f64::from(*q) * s).sum();
-            f(b, m, -dot3(weight_sum, kw) - kh * (1.0 - fitted_sum));
+        for (b, e) in values.enumerate() {
+            f(b, m, factor * e);
         }
+    }
+
+    /// Point `c`'s pairs' entries per unit of modulus, in [`Self::pairs`]'s order.
+    pub(crate) fn pair_values(&self, c: usize) -> &[f64] {
+        &self.pair_values[self.pair_start[c] as usize..self.pair_start[c + 1] as usize]
+    }
+
+    /// Point `c`'s flexural rigidity D, which scales its matrix.
+    pub(crate) fn modulus(&self, c: usize) -> f64 {
+        f64::from(self.modulus[c])
     }
 
     /// y += Σ scale·(JᵀKJ + stabilisation)·p over the points (the implicit step's matrix).
@@ -776,20 +790,6 @@ impl Curvatures {
             let kh = f64::from(self.stab_stiffness(c)) * b.scale;
             self.add_block(c, b.normal, k, kh, p, y);
         }
-    }
-
-    /// The quadric's five coefficients fitted to point `c`'s heights (`height` of each
-    /// fitted neighbour), without a buffer.
-    fn coefficients(&self, c: usize, height: impl Fn(u32) -> f64) -> [f64; 5] {
-        let r = self.fit_start[c] as usize..self.fit_start[c + 1] as usize;
-        let mut coef = [0.0f64; 5];
-        for (&j, w) in self.fit[r.clone()].iter().zip(&self.p_full[r]) {
-            let h = height(j);
-            for (c, w) in coef.iter_mut().zip(w) {
-                *c += f64::from(*w) * h;
-            }
-        }
-        coef
     }
 
     /// rhs −= h²·JᵀKJ·v₀ (the right-hand side's h²·∂f/∂x·v₀).
@@ -820,34 +820,11 @@ impl Curvatures {
             if b.normal == DVec3::ZERO {
                 continue;
             }
-            let (fit, weights) = self.fit_of(c);
-            let (k, nu) = (
-                f64::from(self.stiffness(c)) * b.scale,
-                f64::from(self.poisson[c]),
-            );
-            let mut centre = [0.0f64; 3];
-            for (&j, w) in fit.iter().zip(weights) {
-                let w = w.map(f64::from);
-                add(j as usize, b.normal, dot3(w, form(k, nu, w)));
-                for i in 0..3 {
-                    centre[i] -= w[i];
-                }
-            }
-            add(
-                self.point[c] as usize,
-                b.normal,
-                dot3(centre, form(k, nu, centre)),
-            );
-            let kh = f64::from(self.stab_stiffness(c)) * b.scale;
-            if kh > 0.0 {
-                // Each neighbour's entry is (I − ΦP)ⱼⱼ; the centre's heights all move by −1,
-                // so its entry is 1ᵀ(I − ΦP)1.
-                let range = self.fit_start[c] as usize..self.fit_start[c + 1] as usize;
-                for (&j, d) in fit.iter().zip(&self.projector_diagonal[range]) {
-                    add(j as usize, b.normal, kh * d);
-                }
-                let all = self.projector_sum[c];
-                add(self.point[c] as usize, b.normal, kh * all);
+            let factor = b.scale * self.modulus(c);
+            let range = self.fit_start[c] as usize + c..self.fit_start[c + 1] as usize + c + 1;
+            let stencil = self.stencil(c);
+            for (j, e) in stencil.zip(&self.diagonal_values[range]) {
+                add(j as usize, b.normal, factor * e);
             }
         }
     }
@@ -1161,9 +1138,11 @@ mod tests {
                     column[j]
                 );
             }
-            assert!((diagonal[i][k % 3] - column[i][k % 3]).abs() < 1e-9);
-            // The preconditioner's off-diagonal blocks m·nnᵀ are the product's (to the f32
-            // rounding of the stored fit, by which I − ΦP is not exactly symmetric).
+            // The preconditioner's diagonal and off-diagonal blocks m·nnᵀ are the product's
+            // (to the f32 rounding of the stored fit, by which I − ΦP is not exactly
+            // symmetric: the blocks take Φₐ·P_b for a < b on both sides of the diagonal).
+            let (d, c) = (diagonal[i][k % 3], column[i][k % 3]);
+            assert!((d - c).abs() < 1e-6 * (1.0 + c.abs()), "{d} against {c}");
             let stencil: Vec<usize> = part.stencil(0).map(|j| j as usize).collect();
             let normal = blocks[0].normal;
             part.pairs(0, blocks[0].scale, |a, b, m| {
@@ -1239,6 +1218,16 @@ mod tests {
         ] {
             assert!(Curvatures::new(&[bad], &rest).is_err());
         }
+        // A fit wider than MAX_FIT_POINTS would cost its square in memory: refused.
+        let wide = CurvatureSpec {
+            fit: vec![1; MAX_FIT_POINTS + 1],
+            weights: vec![[0.0; 3]; MAX_FIT_POINTS + 1],
+            ..good.clone()
+        };
+        assert!(matches!(
+            Curvatures::new(&[wide], &rest),
+            Err(SolverError::InvalidCurvature { what, .. }) if what.contains("MAX_FIT_POINTS")
+        ));
         // Neighbours on one line are no fit; a collapsed fan no normal.
         let line: Vec<Vec3> = (1..8).map(|i| Vec3::X * i as f32).collect();
         assert!(fit_weights(Vec3::ZERO, Vec3::Z, &line).is_none());
