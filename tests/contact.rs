@@ -550,9 +550,15 @@ fn a_ball_resting_in_the_hat_is_still() {
         last = now;
     }
     println!("the resting ball's fastest speed each second: {fastest:.4?} m/s");
-    // Settled, not jittering: under 1 cm/s over the eighth and ninth second, and falling
-    // steadily from the fourth second on.
-    assert!(fastest[7].max(fastest[8]) < 0.01, "{fastest:?} m/s");
+    // On the fitted curvature (the default since 2026-12-04) the hat damps the rolling more
+    // slowly: 1.30, 0.215, 0.108, 0.069, 0.052, 0.038, 0.028, 0.019 and 0.0139 m/s.
+    // Settling, not jittering: under 2 cm/s over the ninth second, every second from the
+    // fourth on slower than the one before, and a quarter of the fourth's by the ninth.
+    assert!(fastest[8] < 0.02, "{fastest:?} m/s");
+    assert!(
+        fastest[3..].windows(2).all(|w| w[1] < w[0]),
+        "{fastest:?} m/s"
+    );
     assert!(fastest[8] < 0.25 * fastest[3], "{fastest:?} m/s");
     assert!(last.y > bottom, "the ball is in the hat: {last}");
 }

@@ -62,9 +62,11 @@ fn a_plastic_material_keeps_what_a_grab_pulled_out() {
     }
     let kept = apart(&app) - at_rest;
     println!("plastic grab: {kept:.3} of a {pull} pull kept 300 ticks after release");
-    // Measured 2026-12-03 at the default settings: 0.337 kept; the same sphere elastic
-    // (no creep) springs back to within 0.001.
-    assert!(kept > 0.8 * pull, "only {kept} of a {pull} pull was kept");
+    // Measured at the default settings: 0.337 kept on hinges (2026-12-03), 0.312 on the
+    // fitted curvature, the default since 2026-12-04 (its flow moves the rest curvature and
+    // the stabilisation's rest residuals, a little less of the shape than the hinges' rest
+    // angles held); the same sphere elastic (no creep) springs back to within 0.001.
+    assert!(kept > 0.7 * pull, "only {kept} of a {pull} pull was kept");
     assert!(status(&app, sphere).is_ready());
 }
 

@@ -281,17 +281,20 @@ pub enum BendingModel {
     /// [`Hinges`]) with the energy E = k·(θ − θ̄)², k = `bending_modulus`·3|ē|²/(6·Ā) (Ā the
     /// two triangles' rest area): a plate of flexural rigidity `bending_modulus` (N·m) with
     /// the Poisson's ratio [`HINGE_POISSON_RATIO`], on any network spacing. No bend springs:
-    /// the stretch springs alone carry the sheet in its plane. The default: a coarse
-    /// network bends like a fine one (`point-springs bench convergence`).
-    #[default]
+    /// the stretch springs alone carry the sheet in its plane. On §3's uneven networks it
+    /// depends on how the mesh was cut (coarse spheres 8–12 % stiff in `point-springs bench
+    /// convergence`); a tick costs about 0.9 times one on [`Self::Curvature`].
     Hinges,
     /// Each point's curvature, from a quadric fitted to its neighbours (see
     /// [`CurvatureSpec`]), bears a plate's energy ½·D·A·(ν·(tr ΔS)² + (1 − ν)·ΔS:ΔS) of
     /// flexural rigidity `bending_modulus` (N·m) and Poisson's ratio
     /// [`CURVATURE_POISSON_RATIO`], with `bending_damping` as the hinges'. Unlike hinges it
     /// does not depend on how §3 cuts the mesh: a pinned plate on uneven networks sags as
-    /// Navier's series says to within 0.5 % at 740 points (hinges: 14–26 % stiff). It costs
-    /// more a step than hinges. No bend springs.
+    /// Navier's series says to within 0.5 % at 740 points (hinges: 14–26 % stiff), and
+    /// every problem of `point-springs bench convergence` is within 5 % of its finest level
+    /// from 5 % of the points. No bend springs. The default (see `docs/ARCHITECTURE.md`,
+    /// "Bending on each point's fitted curvature").
+    #[default]
     Curvature,
 }
 
@@ -647,15 +650,16 @@ impl Default for SpringMaterial {
     }
 }
 
-/// The default flexural rigidity of [`SpringMaterial`]'s hinges, N·m: a sheet as stiff in
-/// its plane as the default springs (about 200 N/m) and about 4 cm thick, D = E·t²/12, so a
-/// unit sphere without gas is a shell of radius 24 times its thickness. Measured: a grabbed
+/// The default flexural rigidity of [`SpringMaterial`]'s bending (curvature or hinges), N·m:
+/// a sheet as stiff in its plane as the default springs (about 200 N/m) and about 4 cm
+/// thick, D = E·t²/12, so a unit sphere without gas is a shell of radius 24 times its
+/// thickness. Measured on hinges (2026-12-03): a grabbed
 /// and released sphere without gas springs back (at 0.01 N·m, a radius 41 times the
 /// thickness, it kept a snapped-through dimple, as a ping-pong ball does; at 0.1 the
 /// kitten's conjugate-gradient iterations doubled).
 pub const DEFAULT_BENDING_MODULUS: f32 = 0.03;
 
-/// The default damping time of [`SpringMaterial`]'s hinges, s: a bending mode of 10 rad/s
+/// The default damping time of [`SpringMaterial`]'s bending, s: a bending mode of 10 rad/s
 /// damped at the ratio 0.25, the fastest modes of a fine network overdamped. With axial
 /// spring damping the hinges are what damps motion across a sheet: at 0.01 s a 20 m/s ball
 /// bounced off a pinned sheet at 8.8 m/s and was thrown 7.5 m/s sideways (0.05: 4.5 and

@@ -97,8 +97,9 @@ pub struct Args {
     #[arg(long, default_value = "assets")]
     assets: PathBuf,
     /// How the scenes bend: the paper's bend springs (the default: with them every
-    /// integrator runs at every level; hinges stiffen the explicit schemes' stable step as
-    /// the spacing to the −4th) or hinges (the library's default model).
+    /// integrator runs at every level; a plate's bending stiffens the explicit schemes'
+    /// stable step as the spacing to the −4th), hinges, or each point's fitted curvature
+    /// (the library's default model).
     #[arg(long, value_enum, default_value_t = BendingArg::Springs)]
     bending: BendingArg,
 }
