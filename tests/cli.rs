@@ -696,6 +696,10 @@ fn bench_report_quick_writes_every_file_and_meets_the_error_goal() {
         !nowhere.exists(),
         "nothing is made for a report that cannot run"
     );
+    let unknown = run(&["bench", "report", "--quick", "--scenes", "sheet,teapot"]);
+    assert_eq!(unknown.status.code(), Some(2));
+    let said = String::from_utf8_lossy(&unknown.stderr);
+    assert!(said.contains("teapot") && said.contains("kitten"), "{said}");
 }
 
 #[test]

@@ -39,6 +39,7 @@ pub use dense::{DenseCloud, DenseRest, DenseState, ExportError, FrameParts};
 
 use std::ops::ControlFlow;
 
+use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
 use crate::core::PointCloud;
@@ -48,7 +49,7 @@ use crate::core::network::{
 };
 use crate::core::normals::pca_normals_of;
 use crate::core::normals::{DEFAULT_NORMAL_K, NormalSource, NormalsError, ensure_normals};
-use crate::core::simplify::{SimplifyConfig, SimplifyError, simplify_with_progress};
+use crate::core::simplify::{SimplifyConfig, SimplifyError, pinned_edge, simplify_keeping};
 use crate::core::solver::{
     PointState, Pressure, Solver, SolverConfig, SolverError, SpringMaterial,
 };
@@ -266,8 +267,22 @@ pub struct PreparedSurface {
 /// times in simplification, at each stage's start otherwise); when `progress` answers
 /// [`ControlFlow::Break`] the preparation stops with [`PrepareError::Cancelled`].
 pub fn prepare_surface(
+    cloud: PointCloud,
+    config: &SurfaceConfig,
+    progress: &mut dyn FnMut(Progress) -> ControlFlow<()>,
+) -> Result<PreparedSurface, PrepareError> {
+    prepare_surface_holding(cloud, config, &|_| false, progress)
+}
+
+/// [`prepare_surface`] for a surface whose dense points at the rest positions `held` picks
+/// will be pinned: §3 keeps points along the edge of the held region
+/// ([`pinned_edge`]), so that the simulation points
+/// hold the surface where the dense points are held. Pinning them is the caller's (a
+/// scene's pins: [`Scene::prepare_cloud`](crate::core::scene::Scene::prepare_cloud)).
+pub fn prepare_surface_holding(
     mut cloud: PointCloud,
     config: &SurfaceConfig,
+    held: &dyn Fn(Vec3) -> bool,
     progress: &mut dyn FnMut(Progress) -> ControlFlow<()>,
 ) -> Result<PreparedSurface, PrepareError> {
     config.validate()?;
@@ -297,7 +312,9 @@ pub fn prepare_surface(
     let n = positions.len();
     let floor = config.simplify.target.unwrap_or(0).min(n);
     let mut cancelled = false;
-    let kept = simplify_with_progress(positions, normals, &config.simplify, &mut |p| {
+    let held: Vec<bool> = positions.iter().map(|&p| held(p)).collect();
+    let keep = pinned_edge(positions, &held, &config.simplify);
+    let kept = simplify_keeping(positions, normals, &config.simplify, &keep, &mut |p| {
         let within = p.removed as f32 / n.saturating_sub(floor).max(1) as f32;
         match report(Stage::Simplify, within) {
             Ok(()) => ControlFlow::Continue(()),

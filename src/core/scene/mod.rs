@@ -33,8 +33,9 @@
 //! bounding box's diagonal (RMS) of the full resolution's ([`Scene::choose_level`]).
 //!
 //! [`Scene::prepare`] loads the cloud and prepares it with the one pipeline
-//! ([`prepare_surface`]: normals, §3 simplification, §4 network, §5 transfer coefficients),
-//! pins the pinned points and sets up the [`Timeline`] of pulls, giving a [`SceneRun`];
+//! ([`prepare_surface_holding`]: normals, §3 simplification keeping points along the edges
+//! of the pinned regions, §4 network, §5 transfer coefficients), pins the pinned points and
+//! sets up the [`Timeline`] of pulls, giving a [`SceneRun`];
 //! [`SceneRun::run`] steps it (resampling where the scene asks for it);
 //! [`SceneRun::deformed`] transfers the motion to the dense points:
 //!
@@ -71,7 +72,7 @@ use crate::core::PointCloud;
 use crate::core::cloud::io::{LoadError, read_cloud};
 use crate::core::cloud::knn::KnnIndex;
 use crate::core::pipeline::{
-    NormalsSpec, PrepareError, PreparedSurface, Progress, SurfaceConfig, prepare_surface,
+    NormalsSpec, PrepareError, PreparedSurface, Progress, SurfaceConfig, prepare_surface_holding,
 };
 use crate::core::simplify::SimplifyConfig;
 use crate::core::solver::{
@@ -290,7 +291,8 @@ impl Scene {
         Ok((scene, base))
     }
 
-    /// The surface settings of the scene, for [`prepare_surface`].
+    /// The surface settings of the scene, for
+    /// [`prepare_surface`](crate::core::pipeline::prepare_surface).
     pub fn surface_config(&self) -> SurfaceConfig {
         SurfaceConfig {
             normals: self.normals,
@@ -398,8 +400,9 @@ impl Scene {
         Ok(SceneRun::new(scene, rest, surface, timeline))
     }
 
-    /// Prepares the scene on a cloud already loaded: the surface ([`prepare_surface`],
-    /// reporting to `progress`), its pins, and the timeline of its pulls. A scene with an
+    /// Prepares the scene on a cloud already loaded: the surface ([`prepare_surface_holding`]
+    /// with the pins' regions, reporting to `progress`), its pins, and the timeline of its
+    /// pulls. A scene with an
     /// error budget chooses its level first ([`Self::resolve_budget`]).
     pub fn prepare_cloud(
         &self,
@@ -411,7 +414,9 @@ impl Scene {
             let (scene, _) = self.resolve_budget(&cloud)?;
             return scene.prepare_cloud(cloud, progress);
         }
-        let mut surface = prepare_surface(cloud, &self.surface_config(), progress)?;
+        let pins = &self.pins;
+        let held = |p: Vec3| pins.iter().any(|r| r.contains(p));
+        let mut surface = prepare_surface_holding(cloud, &self.surface_config(), &held, progress)?;
         let solver = &mut surface.solver;
         pin_regions(
             &self.pins,
@@ -419,10 +424,7 @@ impl Scene {
             &mut solver.masses,
             &mut solver.points,
         )?;
-        let pins = &self.pins;
-        surface.dense.hold_where(&surface.solver.masses, |p| {
-            pins.iter().any(|r| r.contains(p))
-        })?;
+        surface.dense.hold_where(&surface.solver.masses, held)?;
         let timeline = Timeline::new(self, &surface.network.positions);
         Ok((surface, timeline))
     }

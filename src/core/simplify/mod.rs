@@ -42,9 +42,11 @@
 //!
 //! [kiddo]: https://crates.io/crates/kiddo
 
+mod keep;
 mod removal;
 pub mod tangent_delaunay;
 
+pub use keep::{MAX_EDGE_SHARE, pinned_edge};
 use removal::State;
 
 use std::borrow::Cow;
@@ -199,6 +201,14 @@ pub enum SimplifyError {
         /// Points given.
         found: usize,
     },
+    /// The flags of the points to keep do not match the points.
+    #[error("{keep} flags of points to keep for {positions} points")]
+    KeepMismatch {
+        /// Points given.
+        positions: usize,
+        /// Flags given.
+        keep: usize,
+    },
     /// The cloud has no normals (tangent planes need them).
     #[error("simplification needs normals; estimate them first (normals::ensure_normals)")]
     NoNormals,
@@ -329,7 +339,29 @@ pub fn simplify_with_progress(
     config: &SimplifyConfig,
     progress: &mut dyn FnMut(SimplifyProgress) -> ControlFlow<()>,
 ) -> Result<Simplification, SimplifyError> {
+    simplify_keeping(positions, normals, config, &[], progress)
+}
+
+/// [`simplify_with_progress`] keeping the points that `keep` marks (one flag per point, or
+/// none at all): they are never removed, and they count towards the target, so that a
+/// feature the surface must show at every level (the edge of a pinned band: see
+/// [`pinned_edge`]) stands on points of its own. A kept point that coincides with another
+/// goes all the same, as any duplicate. When the kept points alone reach the target,
+/// simplification stops there.
+pub fn simplify_keeping(
+    positions: &[Vec3],
+    normals: &[Vec3],
+    config: &SimplifyConfig,
+    keep: &[bool],
+    progress: &mut dyn FnMut(SimplifyProgress) -> ControlFlow<()>,
+) -> Result<Simplification, SimplifyError> {
     validate(positions, normals, config)?;
+    if !keep.is_empty() && keep.len() != positions.len() {
+        return Err(SimplifyError::KeepMismatch {
+            positions: positions.len(),
+            keep: keep.len(),
+        });
+    }
     let (positions, normals, noise_level) = decision_surface(positions, normals, config.denoise);
     let projected = matches!(positions, Cow::Owned(_));
     let (positions, normals) = (&*positions, &*normals);
@@ -339,7 +371,12 @@ pub fn simplify_with_progress(
     let sorted: Vec<Vec3> = order.iter().map(|&i| positions[i as usize]).collect();
     let sorted_normals: Vec<Vec3> = order.iter().map(|&i| normals[i as usize]).collect();
     let rounds_above = config.rounds_above.max(MIN_ROUND_POINTS);
-    let mut state = State::new(&sorted, &sorted_normals, config.k, rounds_above);
+    let locked: Vec<bool> = if keep.is_empty() {
+        Vec::new()
+    } else {
+        order.iter().map(|&i| keep[i as usize]).collect()
+    };
+    let mut state = State::new(&sorted, &sorted_normals, config.k, rounds_above, locked);
     state.evaluate_all();
     if state.shapes.iter().all(|s| s.degenerate) {
         return Err(SimplifyError::NotASurface);

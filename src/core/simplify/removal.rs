@@ -60,6 +60,9 @@ pub(super) struct State<'a> {
     dirty: Vec<bool>,
     /// Points a round may not remove any more (a neighbour of one it removes).
     blocked: Vec<bool>,
+    /// Points never removed but as duplicates (empty: none; see
+    /// [`simplify_keeping`](super::simplify_keeping)).
+    locked: Vec<bool>,
     /// Each point's key at its last evaluation (the bits of its [`priority`]).
     keys: Vec<u32>,
     /// The remaining points in index order while rounds run (then empty).
@@ -92,11 +95,22 @@ fn priority(shape: &RingShape) -> f32 {
 }
 
 impl<'a> State<'a> {
+    /// Point `i`'s [`priority`] with `shape`: infinite (never removed) for a locked point
+    /// that has no coincident neighbour.
+    fn priority_of(&self, i: usize, shape: &RingShape) -> f32 {
+        if !shape.coincident && self.locked.get(i).copied().unwrap_or(false) {
+            f32::INFINITY
+        } else {
+            priority(shape)
+        }
+    }
+
     pub(super) fn new(
         positions: &'a [Vec3],
         normals: &[Vec3],
         k: usize,
         rounds_above: usize,
+        locked: Vec<bool>,
     ) -> Self {
         let rounds = positions.len() > rounds_above;
         let n = positions.len();
@@ -121,6 +135,7 @@ impl<'a> State<'a> {
             alive: vec![true; n],
             dirty: vec![false; n],
             blocked: vec![false; n],
+            locked,
             keys: vec![0; n],
             remaining: if rounds {
                 (0..n as u32).collect()
@@ -311,7 +326,7 @@ impl<'a> State<'a> {
         self.dirty[iu] = false;
         self.generation[iu] = self.generation[iu].wrapping_add(1);
         self.evaluations += 1;
-        self.keys[iu] = priority(&shape).to_bits();
+        self.keys[iu] = self.priority_of(iu, &shape).to_bits();
         if self.queued {
             self.heap
                 .push(Reverse((self.keys[iu], i, self.generation[iu])));
@@ -405,7 +420,7 @@ impl<'a> State<'a> {
             let threshold = config.max_diameter.unwrap_or(f32::INFINITY);
             let below = stale
                 .iter()
-                .any(|&i| priority(&self.shapes[i as usize]) < threshold);
+                .any(|&i| self.priority_of(i as usize, &self.shapes[i as usize]) < threshold);
             if !below {
                 return stop;
             }
@@ -672,7 +687,13 @@ mod tests {
     ) -> (Simplification, usize) {
         let config = SimplifyConfig::target(target);
         let normals = cloud.normals().unwrap();
-        let mut state = State::new(cloud.positions(), normals, config.k, rounds_above);
+        let mut state = State::new(
+            cloud.positions(),
+            normals,
+            config.k,
+            rounds_above,
+            Vec::new(),
+        );
         state.use_spares = spares;
         state.evaluate_all();
         let stop = state.run(target, &config, &mut |_| ControlFlow::Continue(()));

@@ -102,6 +102,10 @@ pub struct Args {
     /// (the library's default model).
     #[arg(long, value_enum, default_value_t = BendingArg::Springs)]
     bending: BendingArg,
+    /// The scenes to run, comma-separated (all four when not given): a quick look at one
+    /// scene, or one scene's figures after a change.
+    #[arg(long, value_enum, value_delimiter = ',', num_args = 1..)]
+    scenes: Vec<ReportScene>,
 }
 
 /// One configuration's row.
@@ -174,13 +178,17 @@ pub fn run(args: &Args) -> Result<(), Failure> {
             "{e} (give --assets, or run from the repository root)"
         ))
     })?;
-    let clouds = ReportScene::ALL
+    let scenes: Vec<ReportScene> = ReportScene::ALL
+        .into_iter()
+        .filter(|s| args.scenes.is_empty() || args.scenes.contains(s))
+        .collect();
+    let clouds = scenes
         .iter()
         .map(|s| s.cloud(&args.assets))
         .collect::<Result<Vec<_>, _>>()?;
     std::fs::create_dir_all(&args.out)
         .map_err(|e| Failure::other(format!("{}: {e}", args.out.display())))?;
-    let total = ReportScene::ALL.len() * plan.runs_per_scene() + 1;
+    let total = scenes.len() * plan.runs_per_scene() + 1;
     let bar = ProgressBar::new(total as u64).with_style(
         ProgressStyle::with_template("{bar:40} {pos}/{len} runs, {elapsed} [{msg}]")
             .map_err(Failure::other)?,
@@ -188,7 +196,7 @@ pub fn run(args: &Args) -> Result<(), Failure> {
     let mut references = Vec::new();
     let mut rows = Vec::new();
     let mut budgets = Vec::new();
-    for (scene, cloud) in ReportScene::ALL.into_iter().zip(&clouds) {
+    for (&scene, cloud) in scenes.iter().zip(&clouds) {
         let diagonal = cloud
             .bounds()
             .map(|b| b.diagonal())
@@ -263,6 +271,7 @@ pub fn run(args: &Args) -> Result<(), Failure> {
     let report = output::Report {
         quick: args.quick,
         bending,
+        scenes,
         seconds: plan.seconds,
         reference_dt: plan.reference_dt,
         threads: rayon::current_num_threads(),

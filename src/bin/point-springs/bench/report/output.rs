@@ -24,6 +24,8 @@ pub struct Report {
     pub quick: bool,
     /// How the scenes bent.
     pub bending: BendingModel,
+    /// The scenes it ran, in the report's order.
+    pub scenes: Vec<ReportScene>,
     /// Simulated time of every run, s.
     pub seconds: f32,
     /// The references' step, s.
@@ -128,7 +130,7 @@ impl Report {
     /// Writes every file into `dir`, returning their paths.
     pub fn write(&self, dir: &Path) -> Result<Vec<PathBuf>, Failure> {
         let mut written = Vec::new();
-        for scene in ReportScene::ALL {
+        for &scene in &self.scenes {
             let stem = dir.join(format!("report_{}", scene.name()));
             written.extend(self.chart(scene).write(&stem)?);
         }
@@ -166,7 +168,8 @@ impl Report {
     }
 
     fn summary(&self) -> Summary {
-        let best_at_10pct = ReportScene::ALL
+        let best_at_10pct = self
+            .scenes
             .iter()
             .filter_map(|&scene| {
                 let rows: Vec<&Row> = self.summary_rows().filter(|r| r.scene == scene).collect();
@@ -402,7 +405,7 @@ impl Report {
                 r.outcome.residual_speed
             );
         }
-        for scene in ReportScene::ALL {
+        for &scene in &self.scenes {
             let _ = writeln!(t, "\n## {}\n", scene.name());
             let _ = writeln!(t, "![{0}](report_{0}.png)\n", scene.name());
             table_header(

@@ -50,7 +50,7 @@ fn material(density: f32, bending: BendingModel) -> SpringMaterial {
 }
 
 /// A scene of the report.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, clap::ValueEnum)]
 #[serde(rename_all = "snake_case")]
 pub enum ReportScene {
     /// The sphere of Fig. 5 (3203 points) with gas inside, held below y = −0.6, its top
