@@ -504,6 +504,7 @@ fn bench_table1_measures_the_papers_sizes_with_every_integrator() {
 
 #[test]
 fn bench_scale_reports_every_configuration_that_fits() {
+    let stem = scratch("scale");
     let v = run_json(&[
         "bench",
         "scale",
@@ -513,8 +514,19 @@ fn bench_scale_reports_every_configuration_that_fits() {
         "60,2000",
         "--steps",
         "2",
+        "--chart",
+        stem.to_str().unwrap(),
         "--json",
     ]);
+    // The log-log charts: the preparation's stages and the step's costs.
+    for chart in ["prepare", "step"] {
+        let name = format!("{}_{chart}", stem.file_name().unwrap().to_string_lossy());
+        let svg = std::fs::read_to_string(stem.with_file_name(&name).with_extension("svg"));
+        let svg = svg.unwrap();
+        assert!(svg.contains("simulation points") && svg.contains("dense points"));
+        let png = std::fs::metadata(stem.with_file_name(&name).with_extension("png")).unwrap();
+        assert!(png.len() > 10_000, "{png:?}");
+    }
     let rows = v.as_array().expect("one row per configuration");
     // 2000 simulation points do not fit in 1500 dense ones: three configurations.
     let sizes: Vec<(u64, u64)> = rows

@@ -2,10 +2,13 @@
 //! the dense and the simulation point counts. Each configuration is the generated sphere of
 //! the paper's Fig. 5 ([`poked_sphere`]) at that size, prepared from scratch, then pressed
 //! for a few steps (implicit Euler at 60 Hz, gas inside), each step followed by the transfer
-//! of positions and normals to every dense point.
+//! of positions and normals to every dense point. `--chart` draws the costs on log-log axes:
+//! each preparation stage against the dense points, a step and the transfer against the
+//! simulation points.
 
 use std::fmt;
 use std::ops::ControlFlow;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use bevy_point_springs::core::pipeline::{Progress, Stage, prepare_surface};
@@ -13,6 +16,7 @@ use bevy_point_springs::core::scene::Timeline;
 use serde::Serialize;
 
 use super::{POKED_SPHERE_DT, poked_sphere};
+use crate::chart::{Chart, Series};
 use crate::failure::Failure;
 use crate::report::print_json;
 
@@ -37,6 +41,11 @@ pub struct Args {
     /// Print JSON instead of a Markdown table.
     #[arg(long)]
     json: bool,
+    /// Also draw the costs on log-log axes: STEM_prepare.svg/.png (each preparation stage
+    /// against the dense points, a line per simulation point count) and STEM_step.svg/.png
+    /// (a step and the transfer against the simulation points, a line per dense count).
+    #[arg(long, value_name = "STEM")]
+    chart: Option<PathBuf>,
 }
 
 /// One configuration: a line of the table or an object of the JSON array.
@@ -115,6 +124,11 @@ pub fn run(args: &Args) -> Result<(), Failure> {
             rows.push(measure(dense, sim, args.steps)?);
         }
     }
+    if let Some(stem) = &args.chart {
+        for path in charts(&rows, stem)? {
+            eprintln!("bench scale: chart {}", path.display());
+        }
+    }
     if args.json {
         return print_json(&rows);
     }
@@ -126,6 +140,99 @@ pub fn run(args: &Args) -> Result<(), Failure> {
         println!("{row}");
     }
     Ok(())
+}
+
+/// A figure of a row, ms.
+type Measure = fn(&Row) -> f64;
+
+/// The two log-log charts of `rows` (see [`Args::chart`]), written next to `stem`.
+fn charts(rows: &[Row], stem: &Path) -> Result<Vec<PathBuf>, Failure> {
+    let distinct = |of: fn(&Row) -> usize| {
+        let mut v: Vec<usize> = rows.iter().map(of).collect();
+        v.sort_unstable();
+        v.dedup();
+        v
+    };
+    let (sims, denses) = (distinct(|r| r.sim_points), distinct(|r| r.dense_points));
+    let stages: [(&str, Measure); 5] = [
+        ("whole", |r| r.prepare_ms),
+        ("§3", |r| r.simplify_ms),
+        ("§4", |r| r.network_ms),
+        ("solver and §5", |r| r.transfer_setup_ms),
+        ("normals", |r| r.normals_ms),
+    ];
+    let mut prepare = Vec::new();
+    for (colour, (stage, ms)) in stages.iter().enumerate() {
+        for (k, &sim) in sims.iter().enumerate() {
+            let points: Vec<(f64, f64)> = rows
+                .iter()
+                .filter(|r| r.sim_points == sim)
+                .map(|r| (r.dense_points as f64, ms(r)))
+                .collect();
+            prepare.push(Series {
+                colour: Some(colour),
+                dash: (k > 0).then_some(3 * k as u32),
+                ..Series::new(format!("{stage}, {sim} simulation points"), points)
+            });
+        }
+    }
+    let mut step = Vec::new();
+    for (k, &dense) in denses.iter().enumerate() {
+        for (colour, (what, ms)) in [
+            ("step", (|r: &Row| r.step_ms) as Measure),
+            ("transfer", |r: &Row| r.transfer_ms),
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            let points: Vec<(f64, f64)> = rows
+                .iter()
+                .filter(|r| r.dense_points == dense)
+                .map(|r| (r.sim_points as f64, ms(r)))
+                .collect();
+            step.push(Series {
+                colour: Some(colour),
+                dash: (k > 0).then_some(3 * k as u32),
+                ..Series::new(format!("{what}, {dense} dense points"), points)
+            });
+        }
+    }
+    let chart = |title: &str, x: &str, y: &str, series| Chart {
+        title: title.to_owned(),
+        x_label: x.to_owned(),
+        y_label: y.to_owned(),
+        log_x: true,
+        log_y: true,
+        series,
+        marked: None,
+        legend_upper: false,
+    };
+    let name = |suffix: &str| {
+        let file = stem
+            .file_name()
+            .map_or_else(String::new, |f| f.to_string_lossy().into_owned());
+        stem.with_file_name(format!("{file}_{suffix}"))
+    };
+    let mut written = Vec::new();
+    written.extend(
+        chart(
+            "Preparation against the dense points (the generated sphere)",
+            "dense points",
+            "ms",
+            prepare,
+        )
+        .write(&name("prepare"))?,
+    );
+    written.extend(
+        chart(
+            "A step (implicit Euler, 60 Hz) and the transfer against the simulation points",
+            "simulation points",
+            "ms",
+            step,
+        )
+        .write(&name("step"))?,
+    );
+    Ok(written)
 }
 
 /// Prepares and steps one configuration.
