@@ -275,10 +275,10 @@ pub fn prepare_surface(
 }
 
 /// [`prepare_surface`] for a surface whose dense points at the rest positions `held` picks
-/// will be pinned: §3 keeps points along the edge of the held region
-/// ([`pinned_edge`]), so that the simulation points
-/// hold the surface where the dense points are held. Pinning them is the caller's (a
-/// scene's pins: [`Scene::prepare_cloud`](crate::core::scene::Scene::prepare_cloud)).
+/// will be pinned: §3 keeps points along the edge of the held region ([`pinned_edge`]), so
+/// that the simulation points hold the surface where the dense points are held. Pinning
+/// them is the caller's (a scene's pins:
+/// [`Scene::prepare_cloud`](crate::core::scene::Scene::prepare_cloud)).
 pub fn prepare_surface_holding(
     mut cloud: PointCloud,
     config: &SurfaceConfig,

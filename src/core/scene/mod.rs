@@ -402,8 +402,8 @@ impl Scene {
 
     /// Prepares the scene on a cloud already loaded: the surface ([`prepare_surface_holding`]
     /// with the pins' regions, reporting to `progress`), its pins, and the timeline of its
-    /// pulls. A scene with an
-    /// error budget chooses its level first ([`Self::resolve_budget`]).
+    /// pulls. A scene with an error budget chooses its level first
+    /// ([`Self::resolve_budget`]).
     pub fn prepare_cloud(
         &self,
         cloud: PointCloud,

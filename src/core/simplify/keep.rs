@@ -22,10 +22,10 @@ pub const MAX_EDGE_SHARE: f32 = 0.25;
 /// The points to keep along the edge of the held points (`held`, one flag per point of
 /// `positions`) for a level of `config`: held points with a free point among their
 /// [`SPACING_NEIGHBOURS`] nearest, those with more free ones first, no two of them closer
-/// than the level's spacing (for a
-/// target, the dense spacing measured there times √(points / target); for a diameter
-/// threshold, half of it; the wider where both are set), and at most [`MAX_EDGE_SHARE`] of
-/// a target. One flag per point (none when nothing is held or everything is).
+/// than the level's spacing (for a target, the dense spacing measured there times
+/// √(points / target); for a diameter threshold, half of it; the wider where both are set),
+/// and at most [`MAX_EDGE_SHARE`] of a target. One flag per point (none when nothing is held
+/// or everything is).
 pub fn pinned_edge(positions: &[Vec3], held: &[bool], config: &SimplifyConfig) -> Vec<bool> {
     let n = positions.len();
     let target = config.target.filter(|t| *t > 0);

@@ -346,8 +346,8 @@ pub fn simplify_with_progress(
 /// none at all): they are never removed, and they count towards the target, so that a
 /// feature the surface must show at every level (the edge of a pinned band: see
 /// [`pinned_edge`]) stands on points of its own. A kept point that coincides with another
-/// goes all the same, as any duplicate. When the kept points alone reach the target,
-/// simplification stops there.
+/// goes all the same, as any duplicate. Where the kept points alone exceed the target, they
+/// all stay and nothing else does.
 pub fn simplify_keeping(
     positions: &[Vec3],
     normals: &[Vec3],
