@@ -478,8 +478,11 @@ fn bench_table1_measures_the_papers_sizes_with_every_integrator() {
         scene.to_str().unwrap(),
         "--steps",
         "3",
+        "--repeats",
+        "2",
         "--json",
     ]);
+    assert_eq!(v["repeats"], 2);
     let rows = v["rows"].as_array().expect("rows");
     assert_eq!(rows.len(), 9, "three sizes, three integrators");
     for (row, paper) in rows.iter().zip([85, 85, 85, 273, 273, 273, 338, 338, 338]) {
@@ -497,6 +500,8 @@ fn bench_table1_measures_the_papers_sizes_with_every_integrator() {
         );
     }
     let out = run(&["bench", "table1", scene.to_str().unwrap(), "--steps", "0"]);
+    assert_eq!(out.status.code(), Some(2));
+    let out = run(&["bench", "table1", scene.to_str().unwrap(), "--repeats", "0"]);
     assert_eq!(out.status.code(), Some(2));
     let out = run(&["bench", "table1", "no/such/scene.ron"]);
     assert_eq!(out.status.code(), Some(2));

@@ -49,6 +49,8 @@ struct Plan {
     seconds: f32,
     /// Steps timed per Table 1 row.
     table1_steps: usize,
+    /// Runs per Table 1 row (the median's).
+    table1_repeats: usize,
     /// How the scenes bend.
     bending: BendingModel,
 }
@@ -62,6 +64,7 @@ impl Plan {
                 reference_dt: 1.0 / 240.0,
                 seconds: 3.0,
                 table1_steps: 30,
+                table1_repeats: 1,
                 bending,
             }
         } else {
@@ -71,6 +74,7 @@ impl Plan {
                 reference_dt: 1.0 / 480.0,
                 seconds: 5.0,
                 table1_steps: 150,
+                table1_repeats: 5,
                 bending,
             }
         }
@@ -263,7 +267,12 @@ pub fn run(args: &Args) -> Result<(), Failure> {
         });
     }
     bar.set_message("Table 1");
-    let table1 = super::table1::measure_sizes(&table1_scene, &table1_base, plan.table1_steps)?;
+    let table1 = super::table1::measure_sizes(
+        &table1_scene,
+        &table1_base,
+        plan.table1_steps,
+        plan.table1_repeats,
+    )?;
     bar.inc(1);
     bar.finish_and_clear();
     mark_speedups(&mut rows);
