@@ -69,8 +69,13 @@ pub fn pinned_edge(positions: &[Vec3], held: &[bool], config: &SimplifyConfig) -
         ((MAX_EDGE_SHARE * t as f32) as usize).max(1)
     });
     loop {
-        let kept = thin(positions, &edge, spacing);
-        if kept.len() <= most || !spacing.is_finite() {
+        let mut kept = thin(positions, &edge, spacing);
+        // No spacing to widen (the edge's points coincide with their neighbours) or none
+        // left: the most exposed `most` of them.
+        if !(spacing > 0.0 && spacing.is_finite()) {
+            kept.truncate(most);
+        }
+        if kept.len() <= most {
             let mut keep = vec![false; n];
             for i in kept {
                 keep[i] = true;
@@ -203,6 +208,12 @@ mod tests {
         assert!(pinned_edge(&positions, &vec![false; positions.len()], &level).is_empty());
         assert!(pinned_edge(&positions, &vec![true; positions.len()], &level).is_empty());
         assert!(pinned_edge(&positions, &held[1..], &level).is_empty());
+        // Every point eight times in place, half of the copies held: every neighbour at no
+        // distance, so no spacing to widen (this looped forever), and still the share.
+        let stacked: Vec<Vec3> = positions[..40].iter().flat_map(|p| [*p; 8]).collect();
+        let half: Vec<bool> = (0..stacked.len()).map(|i| i % 2 == 0).collect();
+        let keep = pinned_edge(&stacked, &half, &SimplifyConfig::target(20));
+        assert_eq!(keep.iter().filter(|k| **k).count(), 5);
         // By a diameter threshold: half of it apart.
         let keep = pinned_edge(&positions, &held, &SimplifyConfig::max_diameter(1.0));
         assert_eq!(keep.iter().filter(|k| **k).count(), 8);

@@ -145,15 +145,38 @@ pub fn run(args: &Args) -> Result<(), Failure> {
 /// A figure of a row, ms.
 type Measure = fn(&Row) -> f64;
 
+/// A line per measure (a colour each) and per value of `group` (a dash each), through the
+/// rows with that value at x = `x`: "measure, value `unit`".
+fn lines(
+    rows: &[Row],
+    measures: &[(&str, Measure)],
+    group: fn(&Row) -> usize,
+    x: fn(&Row) -> usize,
+    unit: &str,
+) -> Vec<Series> {
+    let mut values: Vec<usize> = rows.iter().map(group).collect();
+    values.sort_unstable();
+    values.dedup();
+    let mut series = Vec::new();
+    for (colour, (what, ms)) in measures.iter().enumerate() {
+        for (k, &value) in values.iter().enumerate() {
+            let points = rows
+                .iter()
+                .filter(|r| group(r) == value)
+                .map(|r| (x(r) as f64, ms(r)))
+                .collect();
+            series.push(Series {
+                colour: Some(colour),
+                dash: (k > 0).then_some(3 * k as u32),
+                ..Series::new(format!("{what}, {value} {unit}"), points)
+            });
+        }
+    }
+    series
+}
+
 /// The two log-log charts of `rows` (see [`Args::chart`]), written next to `stem`.
 fn charts(rows: &[Row], stem: &Path) -> Result<Vec<PathBuf>, Failure> {
-    let distinct = |of: fn(&Row) -> usize| {
-        let mut v: Vec<usize> = rows.iter().map(of).collect();
-        v.sort_unstable();
-        v.dedup();
-        v
-    };
-    let (sims, denses) = (distinct(|r| r.sim_points), distinct(|r| r.dense_points));
     let stages: [(&str, Measure); 5] = [
         ("whole", |r| r.prepare_ms),
         ("§3", |r| r.simplify_ms),
@@ -161,42 +184,21 @@ fn charts(rows: &[Row], stem: &Path) -> Result<Vec<PathBuf>, Failure> {
         ("solver and §5", |r| r.transfer_setup_ms),
         ("normals", |r| r.normals_ms),
     ];
-    let mut prepare = Vec::new();
-    for (colour, (stage, ms)) in stages.iter().enumerate() {
-        for (k, &sim) in sims.iter().enumerate() {
-            let points: Vec<(f64, f64)> = rows
-                .iter()
-                .filter(|r| r.sim_points == sim)
-                .map(|r| (r.dense_points as f64, ms(r)))
-                .collect();
-            prepare.push(Series {
-                colour: Some(colour),
-                dash: (k > 0).then_some(3 * k as u32),
-                ..Series::new(format!("{stage}, {sim} simulation points"), points)
-            });
-        }
-    }
-    let mut step = Vec::new();
-    for (k, &dense) in denses.iter().enumerate() {
-        for (colour, (what, ms)) in [
-            ("step", (|r: &Row| r.step_ms) as Measure),
-            ("transfer", |r: &Row| r.transfer_ms),
-        ]
-        .into_iter()
-        .enumerate()
-        {
-            let points: Vec<(f64, f64)> = rows
-                .iter()
-                .filter(|r| r.dense_points == dense)
-                .map(|r| (r.sim_points as f64, ms(r)))
-                .collect();
-            step.push(Series {
-                colour: Some(colour),
-                dash: (k > 0).then_some(3 * k as u32),
-                ..Series::new(format!("{what}, {dense} dense points"), points)
-            });
-        }
-    }
+    let prepare = lines(
+        rows,
+        &stages,
+        |r| r.sim_points,
+        |r| r.dense_points,
+        "simulation points",
+    );
+    let costs: [(&str, Measure); 2] = [("step", |r| r.step_ms), ("transfer", |r| r.transfer_ms)];
+    let step = lines(
+        rows,
+        &costs,
+        |r| r.dense_points,
+        |r| r.sim_points,
+        "dense points",
+    );
     let chart = |title: &str, x: &str, y: &str, series| Chart {
         title: title.to_owned(),
         x_label: x.to_owned(),
