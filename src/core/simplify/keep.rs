@@ -90,8 +90,18 @@ pub fn pinned_edge(positions: &[Vec3], held: &[bool], config: &SimplifyConfig) -
 /// The points of `candidates` kept greedily, in order, none within `spacing` of one kept
 /// before it.
 fn thin(positions: &[Vec3], candidates: &[usize], spacing: f32) -> Vec<usize> {
-    let cell = spacing.max(f32::MIN_POSITIVE);
-    let key = |p: Vec3| (p / cell).floor().as_ivec3();
+    if !(spacing > 0.0 && spacing.is_finite()) {
+        return candidates.to_vec();
+    }
+    // Cells of the spacing, their indices bounded so that a neighbour's never overflows.
+    let key = |p: Vec3| {
+        let c = (p / spacing).floor();
+        glam::IVec3::new(
+            c.x.clamp(-1e9, 1e9) as i32,
+            c.y.clamp(-1e9, 1e9) as i32,
+            c.z.clamp(-1e9, 1e9) as i32,
+        )
+    };
     let mut grid: std::collections::HashMap<glam::IVec3, Vec<usize>> = Default::default();
     let mut kept = Vec::new();
     for &i in candidates {
