@@ -76,6 +76,7 @@
 mod config;
 mod implicit;
 mod parts;
+mod prefactored;
 mod report;
 mod springs;
 mod state;
@@ -90,10 +91,10 @@ use crate::core::network::SpringNetwork;
 
 pub use config::{
     BendingModel, CURVATURE_POISSON_RATIO, DEFAULT_BENDING_DAMPING, DEFAULT_BENDING_MODULUS,
-    DEFAULT_YIELD_ANGLE, DEFAULT_YIELD_STRAIN, DampingModel, HINGE_PLATE_FACTOR,
-    HINGE_POISSON_RATIO, InstabilityResponse, Integrator, MaterialUnits, Plasticity,
-    RUNAWAY_DIAGONALS_PER_SECOND, RUNAWAY_MIN_SPEED, SHEET_LATTICE_FACTOR, SolverConfig,
-    SpringMaterial, SubstepPolicy, UnknownIntegrator,
+    DEFAULT_LOCAL_GLOBAL_ITERATIONS, DEFAULT_YIELD_ANGLE, DEFAULT_YIELD_STRAIN, DampingModel,
+    HINGE_PLATE_FACTOR, HINGE_POISSON_RATIO, ImplicitSolver, InstabilityResponse, Integrator,
+    MaterialUnits, Plasticity, RUNAWAY_DIAGONALS_PER_SECOND, RUNAWAY_MIN_SPEED,
+    SHEET_LATTICE_FACTOR, SolverConfig, SpringMaterial, SubstepPolicy, UnknownIntegrator,
 };
 use parts::non_negative;
 pub use parts::{

@@ -12,15 +12,15 @@
 
 use glam::Vec3;
 
-use super::implicit;
 use super::parts::{
     Anchors, ExternalForces, Masses, PointState, Pressure, Soa3, Springs, sane, within,
 };
 use super::{
-    DampingModel, Diagnostics, Energy, Instability, InstabilityResponse, Integrator,
-    RUNAWAY_DIAGONALS_PER_SECOND, RUNAWAY_MIN_SPEED, STATE_LIMIT, SolverConfig, SolverError,
-    Stability, StepReport, SubstepPolicy,
+    DampingModel, Diagnostics, Energy, ImplicitSolver, Instability, InstabilityResponse,
+    Integrator, RUNAWAY_DIAGONALS_PER_SECOND, RUNAWAY_MIN_SPEED, STATE_LIMIT, SolverConfig,
+    SolverError, Stability, StepReport, SubstepPolicy,
 };
+use super::{implicit, prefactored};
 
 /// The parts of a surface a step reads but does not change.
 #[derive(Debug, Clone, Copy)]
@@ -75,6 +75,8 @@ pub struct Stepper {
     /// The state before the step, when the guard needs a copy.
     snapshot: Option<(Soa3, Soa3)>,
     pub(crate) implicit: implicit::Scratch,
+    /// The prefactored matrix of [`ImplicitSolver::LocalGlobal`] steps and their scratch.
+    pub(crate) prefactored: prefactored::Scratch,
     /// The stability estimate and the revisions of the parts it was made for.
     stability: Option<(Stability, [u64; 3])>,
     diagnostics: Diagnostics,
@@ -235,7 +237,7 @@ impl Stepper {
         (self.forces_ready && i < self.fa.len()).then(|| self.fa.get(i) + self.fb.get(i))
     }
 
-    fn compute_internal(&mut self, points: &PointState, model: Model<'_>) {
+    pub(super) fn compute_internal(&mut self, points: &PointState, model: Model<'_>) {
         let g = self.config.gravity;
         let mu = self.config.drag;
         let (v, m) = (&points.v, &model.masses.mass);
@@ -274,7 +276,7 @@ impl Stepper {
         }
     }
 
-    fn add_external(&mut self, external: &ExternalForces) {
+    pub(super) fn add_external(&mut self, external: &ExternalForces) {
         if !external.any {
             return;
         }
@@ -493,9 +495,19 @@ impl Stepper {
                     self.project_contacts(points, model, external, h, insane)
                 }
                 Integrator::ImplicitEuler => {
-                    let cg = self.implicit_step(points, model, external, h);
-                    report.cg_iterations += cg.iterations;
-                    report.cg_converged &= cg.converged;
+                    let local_global = match self.config.implicit_solver {
+                        ImplicitSolver::LocalGlobal { iterations } => {
+                            self.local_global_step(points, model, external, h, iterations)
+                        }
+                        ImplicitSolver::ConjugateGradient => None,
+                    };
+                    if let Some(iterations) = local_global {
+                        report.cg_iterations += iterations;
+                    } else {
+                        let cg = self.implicit_step(points, model, external, h);
+                        report.cg_iterations += cg.iterations;
+                        report.cg_converged &= cg.converged;
+                    }
                     points.x.count_insane() + points.v.count_beyond(speed)
                 }
             };

@@ -10,7 +10,7 @@ use egui_plot::{Legend, Line, Plot};
 
 use super::{HISTORY_SECONDS, PanelHistory, SurfacePanel};
 use crate::core::simplify::MIN_SIMULATION_POINTS;
-use crate::core::solver::{BendingModel, Integrator, MaterialUnits, SubstepPolicy};
+use crate::core::solver::{BendingModel, ImplicitSolver, Integrator, MaterialUnits, SubstepPolicy};
 use crate::plugin::components::{
     DeformableSurface, DenseSurface, PreparationProgress, SimulationPoints, StepOnce,
     SurfaceInView, SurfaceMaterial, SurfaceNetwork, SurfaceSettings, SurfaceSleep, SurfaceSprings,
@@ -419,6 +419,25 @@ fn solver(
                 );
             }
         });
+    if config.integrator == Integrator::ImplicitEuler {
+        egui::ComboBox::from_label("implicit solver")
+            .selected_text(config.implicit_solver.name())
+            .show_ui(ui, |ui| {
+                for solver in [
+                    ImplicitSolver::ConjugateGradient,
+                    ImplicitSolver::LOCAL_GLOBAL,
+                ] {
+                    let chosen = std::mem::discriminant(&config.implicit_solver)
+                        == std::mem::discriminant(&solver);
+                    if ui.selectable_label(chosen, solver.name()).clicked() && !chosen {
+                        config.implicit_solver = solver;
+                    }
+                }
+            });
+        if let ImplicitSolver::LocalGlobal { iterations } = &mut config.implicit_solver {
+            ui.add(slider(iterations, 1..=16, "iterations a step"));
+        }
+    }
     if let SubstepPolicy::Auto { max_substeps } = &mut config.substeps {
         ui.add(slider(max_substeps, 1..=256, "max sub-steps"));
     }

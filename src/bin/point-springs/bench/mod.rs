@@ -12,6 +12,7 @@ mod plugin;
 mod poke;
 mod report;
 mod scale;
+mod solvers;
 mod table1;
 mod transfer;
 
@@ -73,6 +74,10 @@ enum Case {
     /// full-resolution reference; writes report.md, report.csv, a chart per scene with its
     /// Pareto front, and summary.json (with the paper's Table 1).
     Report(report::Args),
+    /// Implicit Euler's two solvers side by side: conjugate gradient and the prefactored
+    /// local/global iterations at several counts, on the scenes of `report` at one level;
+    /// ms per step and each dense surface's distance from the CG run's at the end.
+    Solvers(solvers::Args),
 }
 
 /// Runs `bench`.
@@ -89,5 +94,6 @@ pub fn run(args: Args) -> Result<(), Failure> {
         Case::Scale(args) => scale::run(&args),
         Case::Convergence(args) => convergence::run(&args),
         Case::Report(args) => report::run(&args),
+        Case::Solvers(args) => solvers::run(&args),
     }
 }

@@ -2,7 +2,8 @@
 //! the dense and the simulation point counts. Each configuration is the generated sphere of
 //! the paper's Fig. 5 ([`poked_sphere`]) at that size, prepared from scratch, then pressed
 //! for a few steps (implicit Euler at 60 Hz, gas inside), each step followed by the transfer
-//! of positions and normals to every dense point. `--chart` draws the costs on log-log axes:
+//! of positions and normals to every dense point; the same steps are also taken from the
+//! same state by the prefactored local/global solver. `--chart` draws the costs on log-log axes:
 //! each preparation stage against the dense points, a step and the transfer against the
 //! simulation points.
 
@@ -13,6 +14,7 @@ use std::time::Instant;
 
 use bevy_point_springs::core::pipeline::{Progress, Stage, prepare_surface};
 use bevy_point_springs::core::scene::Timeline;
+use bevy_point_springs::core::solver::{DEFAULT_LOCAL_GLOBAL_ITERATIONS, ImplicitSolver};
 use serde::Serialize;
 
 use super::{POKED_SPHERE_DT, poked_sphere};
@@ -67,8 +69,13 @@ struct Row {
     network_ms: f64,
     /// Of which the solver and the §5 coefficients, ms.
     transfer_setup_ms: f64,
-    /// A step (the scene's press, then the solver), ms.
+    /// A step (the scene's press, then the solver; conjugate gradient), ms.
     step_ms: f64,
+    /// The same steps from the same state with the prefactored local/global solver
+    /// (`ImplicitSolver::LOCAL_GLOBAL`), ms; its factorisation included.
+    step_local_global_ms: f64,
+    /// Its first step alone (the factorisation and one step), ms.
+    first_local_global_ms: f64,
     /// The transfer of positions and normals to every dense point, ms per step.
     transfer_ms: f64,
     /// The transfer's coefficients, MiB.
@@ -82,7 +89,7 @@ impl fmt::Display for Row {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write!(
             f,
-            "| {} | {} | {} | {:.0} ({:.0} / {:.0} / {:.0} / {:.0}) | {:.3} | {:.3} | {:.1} | ",
+            "| {} | {} | {} | {:.0} ({:.0} / {:.0} / {:.0} / {:.0}) | {:.3} | {:.3} ({:.1}) | {:.3} | {:.1} | ",
             self.dense_points,
             self.sim_points,
             self.springs,
@@ -92,6 +99,8 @@ impl fmt::Display for Row {
             self.network_ms,
             self.transfer_setup_ms,
             self.step_ms,
+            self.step_local_global_ms,
+            self.first_local_global_ms,
             self.transfer_ms,
             self.coefficient_mib
         )?;
@@ -133,9 +142,9 @@ pub fn run(args: &Args) -> Result<(), Failure> {
         return print_json(&rows);
     }
     println!(
-        "| dense points | simulation points | springs | prepare, ms (normals / §3 / §4 / solver and §5) | step, ms | transfer, ms | coefficients, MiB | resident, MiB |"
+        "| dense points | simulation points | springs | prepare, ms (normals / §3 / §4 / solver and §5) | step (CG), ms | step (local/global ×{DEFAULT_LOCAL_GLOBAL_ITERATIONS}), ms (first step) | transfer, ms | coefficients, MiB | resident, MiB |"
     );
-    println!("|---|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|---|");
     for row in &rows {
         println!("{row}");
     }
@@ -191,7 +200,11 @@ fn charts(rows: &[Row], stem: &Path) -> Result<Vec<PathBuf>, Failure> {
         |r| r.dense_points,
         "simulation points",
     );
-    let costs: [(&str, Measure); 2] = [("step", |r| r.step_ms), ("transfer", |r| r.transfer_ms)];
+    let costs: [(&str, Measure); 3] = [
+        ("step (CG)", |r| r.step_ms),
+        ("step (local/global)", |r| r.step_local_global_ms),
+        ("transfer", |r| r.transfer_ms),
+    ];
     let step = lines(
         rows,
         &costs,
@@ -258,6 +271,25 @@ fn measure(dense: usize, sim: usize, steps: usize) -> Result<Row, Failure> {
         let until = started.get(i + 1).map_or(end, |&(_, t)| t);
         (until - started[i].1).as_secs_f64() * 1e3
     };
+    let mut local_global = surface.solver.clone();
+    let mut config = *local_global.config();
+    config.implicit_solver = ImplicitSolver::LOCAL_GLOBAL;
+    local_global.set_config(config).map_err(Failure::other)?;
+    let mut timeline = Timeline::new(&scene, &surface.network.positions);
+    let (mut lg_s, mut first_lg_s) = (0.0, 0.0);
+    for step in 0..steps {
+        let t = Instant::now();
+        timeline
+            .advance(&mut local_global.anchors, &surface.network.positions)
+            .map_err(Failure::other)?;
+        local_global.step(POKED_SPHERE_DT).map_err(Failure::other)?;
+        let took = t.elapsed().as_secs_f64();
+        lg_s += took;
+        if step == 0 {
+            first_lg_s = took;
+        }
+    }
+    drop(local_global);
     let mut timeline = Timeline::new(&scene, &surface.network.positions);
     let (mut step_s, mut transfer_s) = (0.0, 0.0);
     for _ in 0..steps {
@@ -288,6 +320,8 @@ fn measure(dense: usize, sim: usize, steps: usize) -> Result<Row, Failure> {
         network_ms: stage_ms(Stage::Network),
         transfer_setup_ms: stage_ms(Stage::Transfer),
         step_ms: per_step(step_s),
+        step_local_global_ms: per_step(lg_s),
+        first_local_global_ms: first_lg_s * 1e3,
         transfer_ms: per_step(transfer_s),
         coefficient_mib: surface.dense.transfer().coefficient_bytes() as f64
             / f64::from(1u32 << 20),

@@ -770,6 +770,22 @@ impl Curvatures {
         }
     }
 
+    /// Point `c`'s diagonal entries of the implicit step's matrix at `scale` (see
+    /// [`Self::pairs`]): `f(point, m)` for each point of its stencil, the block there being
+    /// m·nnᵀ.
+    pub(crate) fn diagonal_entries(&self, c: usize, scale: f64, mut f: impl FnMut(u32, f64)) {
+        let factor = scale * self.modulus(c);
+        let range = self.fit_start[c] as usize + c..self.fit_start[c + 1] as usize + c + 1;
+        for (j, e) in self.stencil(c).zip(&self.diagonal_values[range]) {
+            f(j, factor * e);
+        }
+    }
+
+    /// Point `c`'s bending damping β (s): its damping block is β times its stiffness one.
+    pub(crate) fn damping_rate(&self, c: usize) -> f64 {
+        f64::from(self.damping[c])
+    }
+
     /// Point `c`'s pairs' entries per unit of modulus, in [`Self::pairs`]'s order.
     pub(crate) fn pair_values(&self, c: usize) -> &[f64] {
         &self.pair_values[self.pair_start[c] as usize..self.pair_start[c + 1] as usize]

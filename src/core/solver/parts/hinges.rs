@@ -237,6 +237,24 @@ impl Hinges {
     /// [`Self::accumulate`] wrote at `points`: for each hinge its gradient (in `f64`), the scale
     /// s = h·c + h²·2k of its block s·∇θ∇θᵀ, and h²·2k·(∇θ·v) for the right-hand side (zero
     /// for a degenerate hinge, whose gradient is zero).
+    /// The signed lengths of hinge `h`'s rest gradient ∇θ over its four points (edge points
+    /// −, wings +: on a flat hinge ∇θ is one direction times these), scaled so that they sum
+    /// to zero as ∇θ does; zero for a hinge without a rest gradient.
+    pub(crate) fn scalar_gradient(&self, h: usize) -> [f64; 4] {
+        let g = self.rest_gradient[h].map(f64::from);
+        let (edge, wings) = (g[0] + g[1], g[2] + g[3]);
+        if !(edge > 0.0 && wings > 0.0) {
+            return [0.0; 4];
+        }
+        let mean = 0.5 * (edge + wings);
+        [
+            -g[0] * mean / edge,
+            -g[1] * mean / edge,
+            g[2] * mean / wings,
+            g[3] * mean / wings,
+        ]
+    }
+
     pub(crate) fn linearised(
         &self,
         gradients: &[[Vec3; 4]],

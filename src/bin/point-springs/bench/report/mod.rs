@@ -8,9 +8,9 @@
 //! (the paper's Table 1 measured here, and per scene the fastest configuration at about
 //! 10 % of the points that keeps the RMS error under 1 %).
 
-mod measure;
+pub(super) mod measure;
 mod output;
-mod scenes;
+pub(super) mod scenes;
 
 use std::path::PathBuf;
 use std::time::Instant;
