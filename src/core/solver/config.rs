@@ -33,16 +33,18 @@ pub enum Integrator {
 pub enum ImplicitSolver {
     /// Backward Euler linearised once per step and solved by preconditioned conjugate
     /// gradient to [`SolverConfig::cg_tolerance`]. Carries everything, contacts included;
-    /// its iterations grow with the network (about 0.35 µs a spring at 10⁴ simulation
-    /// points against 0.14 at 10³, `point-springs bench scale`). The default.
+    /// its iterations grow with the network (on `point-springs bench scale`'s poked sphere
+    /// about 0.47 µs a spring at 10³ simulation points and 1.4–2.3 µs at 10⁴). The default.
     #[default]
     ConjugateGradient,
     /// Backward Euler by `iterations` local/global iterations over one matrix factorised in
     /// advance (Liu et al. 2013, as quasi-Newton: Liu, Bouaziz & Kavan 2017). Every force
     /// takes part; each iteration costs about an explicit step and one sparse solve, and the
     /// matrix is factorised again only when the step length, masses, pins, springs, bending,
-    /// anchors (not their targets) or drag change. Not converged, a step is softer and
-    /// more damped than backward Euler's in fast motion; at rest it is at the same
+    /// anchors (not their targets) or drag change: about 0.35 µs a spring at 10³ and at
+    /// 10⁴ points. Not converged, a step is softer and more damped than backward Euler's
+    /// in fast motion, most on stiff cloth (the matrix holds each spring's stiffness
+    /// across it too, so a cloth of stiff springs falls slowly); at rest it is at the same
     /// equilibrium. A step with contacts is solved by CG. See `docs/ARCHITECTURE.md`.
     LocalGlobal {
         /// Iterations per step, at least 1.

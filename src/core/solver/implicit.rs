@@ -574,7 +574,7 @@ fn assemble(
 
 /// Below this share of its trace an axis of the inertia tensor counts as empty (the points
 /// on one line turn about it with no inertia, and no torque can act about it).
-const FLAT_INERTIA: f64 = 1e-12;
+pub(super) const FLAT_INERTIA: f64 = 1e-12;
 
 /// Makes the step's internal impulses sum to no force and no torque, as the internal forces
 /// themselves do (springs and their axial damping are central; hinges and the gas depend only
