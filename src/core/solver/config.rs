@@ -45,7 +45,8 @@ pub enum ImplicitSolver {
     /// 10⁴ points. Not converged, a step is softer and more damped than backward Euler's
     /// in fast motion, most on stiff cloth (the matrix holds each spring's stiffness
     /// across it too, so a cloth of stiff springs falls slowly); at rest it is at the same
-    /// equilibrium. A step with contacts is solved by CG. See `docs/ARCHITECTURE.md`.
+    /// equilibrium. Contacts are projected after the step, as the explicit integrators take
+    /// them (CG holds them inside its solve). See `docs/ARCHITECTURE.md`.
     LocalGlobal {
         /// Iterations per step, at least 1.
         iterations: u32,

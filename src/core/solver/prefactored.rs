@@ -40,8 +40,11 @@
 //! nonlinear springs are resolved too); a surface at rest is at the same equilibrium
 //! whatever the iterations.
 //!
-//! A step with contacts is solved by CG: its contacts are constraints filtered inside the
-//! CG solve (see `implicit`).
+//! Contacts are taken as the explicit integrators take them: after the step each contact's
+//! point gets the least velocity change along its normal that meets it, then friction
+//! (`contact::step::project`). CG instead holds them inside its solve (filtered
+//! constraints), so that a resting body's neighbours feel it within the step; here they feel
+//! it from the next step on.
 
 use faer::linalg::solvers::SolveCore;
 use faer::sparse::linalg::solvers::Llt;
@@ -50,6 +53,7 @@ use faer::{Conj, MatMut, Side};
 use glam::{DMat3, DVec3};
 
 use super::DampingModel;
+use super::contact::step::project;
 use super::implicit::FLAT_INERTIA;
 use super::parts::{ExternalForces, PointState};
 use super::stepper::{Model, Stepper};
@@ -249,8 +253,8 @@ fn solve(factor: &Llt<u32, f32>, columns: &mut [f32], rows: usize) {
 
 impl Stepper {
     /// One implicit Euler step of length `h` by `iterations` local/global iterations over
-    /// the prefactored matrix; returns `None` (nothing changed) where it cannot be taken
-    /// that way: P could not be factorised, or the step has contacts.
+    /// the prefactored matrix, then the contacts projected; returns `None` (nothing
+    /// changed) where P could not be factorised.
     pub(super) fn local_global_step(
         &mut self,
         points: &mut PointState,
@@ -259,9 +263,6 @@ impl Stepper {
         h: f32,
         iterations: u32,
     ) -> Option<u32> {
-        if !external.contacts.is_empty() {
-            return None;
-        }
         let mut s = std::mem::take(&mut self.prefactored);
         let hd = f64::from(h);
         if !s.ready(model, hd, self.config().drag) {
@@ -319,7 +320,8 @@ impl Stepper {
             let v = (s.trial.x.get(i).as_dvec3() - points.x.get(i).as_dvec3()) * inv_h;
             s.trial.v.set(i, v.as_vec3());
         }
-        if self.config().damping_model == DampingModel::Axial && rows == n {
+        let contacts = &external.contacts;
+        if self.config().damping_model == DampingModel::Axial && rows == n && contacts.is_empty() {
             self.keep_momenta(&mut s.trial, points, model, external, hd);
         }
         for &i in &s.free {
@@ -333,6 +335,15 @@ impl Stepper {
                 let x = points.x.get(i) + points.v.get(i) * h;
                 points.x.set(i, x);
             }
+        }
+        if !contacts.is_empty() && points.x.count_insane() == 0 {
+            project(
+                points,
+                model.masses,
+                contacts,
+                h,
+                &mut self.contact_impulses,
+            );
         }
         self.prefactored = s;
         Some(iterations)

@@ -23,7 +23,7 @@ use crate::failure::Failure;
 use crate::report::print_json;
 
 /// Most dense points `bench scale` takes.
-const MAX_DENSE: usize = 5_000_000;
+const MAX_DENSE: usize = 20_000_000;
 
 /// Most steps timed per configuration.
 const MAX_STEPS: usize = 10_000;
@@ -83,13 +83,16 @@ struct Row {
     /// The process's resident memory with this surface prepared and stepped, MiB (Linux:
     /// `VmRSS`; it includes what the allocator keeps from earlier configurations).
     resident_mib: Option<f64>,
+    /// The process's peak resident memory so far, MiB (Linux: `VmHWM`): with one
+    /// configuration a run, what preparing and stepping it took at most.
+    peak_mib: Option<f64>,
 }
 
 impl fmt::Display for Row {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write!(
             f,
-            "| {} | {} | {} | {:.0} ({:.0} / {:.0} / {:.0} / {:.0}) | {:.3} | {:.3} ({:.1}) | {:.3} | {:.1} | ",
+            "| {} | {} | {} | {:.0} ({:.0} / {:.0} / {:.0} / {:.0}) | {:.3} | {:.3} ({:.1}) | {:.3} | {:.1} |",
             self.dense_points,
             self.sim_points,
             self.springs,
@@ -104,10 +107,13 @@ impl fmt::Display for Row {
             self.transfer_ms,
             self.coefficient_mib
         )?;
-        match self.resident_mib {
-            Some(mib) => write!(f, "{mib:.0} |"),
-            None => write!(f, "— |"),
+        for mib in [self.resident_mib, self.peak_mib] {
+            match mib {
+                Some(mib) => write!(f, " {mib:.0} |")?,
+                None => write!(f, " — |")?,
+            }
         }
+        Ok(())
     }
 }
 
@@ -142,9 +148,9 @@ pub fn run(args: &Args) -> Result<(), Failure> {
         return print_json(&rows);
     }
     println!(
-        "| dense points | simulation points | springs | prepare, ms (normals / §3 / §4 / solver and §5) | step (CG), ms | step (local/global ×{DEFAULT_LOCAL_GLOBAL_ITERATIONS}), ms (first step) | transfer, ms | coefficients, MiB | resident, MiB |"
+        "| dense points | simulation points | springs | prepare, ms (normals / §3 / §4 / solver and §5) | step (CG), ms | step (local/global ×{DEFAULT_LOCAL_GLOBAL_ITERATIONS}), ms (first step) | transfer, ms | coefficients, MiB | resident, MiB | peak, MiB |"
     );
-    println!("|---|---|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|---|---|");
     for row in &rows {
         println!("{row}");
     }
@@ -325,14 +331,16 @@ fn measure(dense: usize, sim: usize, steps: usize) -> Result<Row, Failure> {
         transfer_ms: per_step(transfer_s),
         coefficient_mib: surface.dense.transfer().coefficient_bytes() as f64
             / f64::from(1u32 << 20),
-        resident_mib: resident_mib(),
+        resident_mib: status_mib("VmRSS:"),
+        peak_mib: status_mib("VmHWM:"),
     })
 }
 
-/// The process's resident memory, MiB, where the system says (Linux).
-fn resident_mib() -> Option<f64> {
+/// A memory figure of the process's status (`field`: "VmRSS:", "VmHWM:"), MiB, where the
+/// system says (Linux).
+fn status_mib(field: &str) -> Option<f64> {
     let status = std::fs::read_to_string("/proc/self/status").ok()?;
-    let line = status.lines().find(|l| l.starts_with("VmRSS:"))?;
+    let line = status.lines().find(|l| l.starts_with(field))?;
     let kib: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
     Some(kib / 1024.0)
 }

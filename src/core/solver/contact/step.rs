@@ -87,7 +87,7 @@ mod tests {
     use super::*;
     use crate::core::fixtures::cloth::{CLOTH_MASS, cloth_grid};
     use crate::core::solver::contact::StepBody;
-    use crate::core::solver::{Integrator, Solver, SolverError, SubstepPolicy};
+    use crate::core::solver::{ImplicitSolver, Integrator, Solver, SolverError, SubstepPolicy};
 
     const DT: f32 = 1.0 / 60.0;
 
@@ -132,8 +132,19 @@ mod tests {
 
     #[test]
     fn a_sheet_on_the_ground_stays_put_and_the_ground_carries_its_weight() {
-        for integrator in [Integrator::ImplicitEuler, Integrator::SymplecticEuler] {
+        let cases = [
+            (Integrator::ImplicitEuler, ImplicitSolver::ConjugateGradient),
+            (
+                Integrator::SymplecticEuler,
+                ImplicitSolver::ConjugateGradient,
+            ),
+            (Integrator::ImplicitEuler, ImplicitSolver::LOCAL_GLOBAL),
+        ];
+        for (integrator, implicit_solver) in cases {
             let mut solver = sheet(integrator, true);
+            let mut config = *solver.config();
+            config.implicit_solver = implicit_solver;
+            solver.set_config(config).unwrap();
             let weight = CLOTH_MASS * 9.81 * solver.len() as f32;
             for _ in 0..60 {
                 on_the_ground(&mut solver);
@@ -141,7 +152,7 @@ mod tests {
                 let carried: Vec3 = solver.contact_impulses().iter().sum();
                 assert!(
                     (carried.y / DT - weight).abs() < 1e-3 * weight,
-                    "{integrator:?}: the ground carried {} N of {weight} N",
+                    "{integrator:?}, {implicit_solver:?}: the ground carried {} N of {weight} N",
                     carried.y / DT
                 );
             }
