@@ -24,13 +24,16 @@
 //!   k_d·I, so P bounds them and the iteration never overshoots on them;
 //! - each anchor k + k_d/h on its point;
 //! - curvature bending (1 + β/h)·B, where B⊗nnᵀ is the Gauss–Newton block JᵀKJ the CG
-//!   solve uses (bounded by B⊗I); it keeps the bending's stencil, so a rigid motion costs
-//!   nothing in P either and a falling or bending surface moves at full speed;
+//!   solve uses (bounded by B⊗I); it keeps the bending's stencil, so, as with the springs,
+//!   a translation costs nothing in P and a falling surface falls at backward Euler's speed;
 //! - each hinge (2k + c/h)·ggᵀ, g the signed lengths of its rest gradient ∇θ (wings +,
 //!   edge −, scaled to sum to zero);
-//! - gas and couplings are not in P (their forces are in r; P's springs dominate them).
+//! - the gas's stiffness along the volume's gradient, c·ggᵀ, added each step by
+//!   Sherman–Morrison (see [`Scratch::gas_term`]); couplings are not in P (their forces are
+//!   in r; P's springs dominate them).
 //!
-//! P is factorised once (sparse Cholesky with a fill-reducing ordering, `faer`) and
+//! P is factorised once (sparse Cholesky with a fill-reducing ordering, `faer`, in `f32`:
+//! r is recomputed every iteration, so the solve's rounding only slows convergence) and
 //! factorised again only when the step length, the masses or pins, the springs (stiffness,
 //! bending), the anchors' set or stiffness, or the drag change: moving an anchor's target
 //! (a poke, a drag) costs nothing. An iteration costs one evaluation of the forces (about
@@ -99,7 +102,8 @@ pub(crate) struct Scratch {
 
 impl Scratch {
     /// Whether a step of length `h` over `model` can be taken here: P is factorised for it,
-    /// building it first where the key changed. `config_drag` is μ.
+    /// building it first where the key changed (`drag` is μ). Where P cannot be factorised
+    /// the step is CG's, until the key changes.
     fn ready(&mut self, model: Model<'_>, h: f64, drag: f32) -> bool {
         let key = Key {
             h: h.to_bits(),

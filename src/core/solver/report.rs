@@ -190,7 +190,9 @@ pub struct StepReport {
     /// The sub-step count hit [`SubstepPolicy::Auto`]'s cap: the step ran above the stable
     /// step.
     pub limited: bool,
-    /// Conjugate-gradient iterations (implicit Euler), summed over sub-steps.
+    /// Conjugate-gradient iterations (implicit Euler), summed over sub-steps; with
+    /// [`ImplicitSolver::LocalGlobal`](super::ImplicitSolver::LocalGlobal), its local/global
+    /// iterations.
     pub cg_iterations: u32,
     /// Whether every conjugate-gradient solve reached its tolerance.
     pub cg_converged: bool,
@@ -218,7 +220,8 @@ pub struct Diagnostics {
     pub substeps: u64,
     /// Steps whose sub-step count hit the cap.
     pub limited_steps: u64,
-    /// Conjugate-gradient iterations.
+    /// Conjugate-gradient iterations (or local/global ones, see
+    /// [`StepReport::cg_iterations`]).
     pub cg_iterations: u64,
     /// Implicit solves that stopped at the iteration cap.
     pub cg_unconverged: u64,
