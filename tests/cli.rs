@@ -551,10 +551,52 @@ fn bench_scale_reports_every_configuration_that_fits() {
             "{r}"
         );
         assert!(ms("step_ms") > 0.0 && ms("transfer_ms") > 0.0 && ms("coefficient_mib") > 0.0);
+        // The local/global solver's steps include its factorisation, timed alone too.
+        assert!(ms("first_local_global_ms") > 0.0);
+        assert!(ms("step_local_global_ms") * 2.0 >= ms("first_local_global_ms"));
         assert!(r["springs"].as_u64().unwrap() > 0);
     }
     let out = run(&["bench", "scale", "--dense", "3", "--steps", "1"]);
     assert_eq!(out.status.code(), Some(2));
+}
+
+#[test]
+fn bench_solvers_compares_the_local_global_solver_with_cg() {
+    let v = run_json(&[
+        "bench",
+        "solvers",
+        "--scenes",
+        "sheet",
+        "--fraction",
+        "0.1",
+        "--seconds",
+        "1",
+        "--iterations",
+        "1,4",
+        "--json",
+    ]);
+    let rows = v["rows"].as_array().expect("rows");
+    let solvers: Vec<&str> = rows.iter().map(|r| r["solver"].as_str().unwrap()).collect();
+    assert_eq!(solvers, ["cg", "local-global ×1", "local-global ×4"]);
+    assert!(rows[0]["rms_vs_cg_percent"].is_null());
+    for r in rows {
+        assert_eq!(r["stable"], true, "{r}");
+        assert!(r["ms_step"].as_f64().unwrap() > 0.0);
+    }
+    // Four iterations a step end nearer CG's surface than one, and both near it.
+    let rms = |r: &serde_json::Value| r["rms_vs_cg_percent"].as_f64().unwrap();
+    assert!(
+        rms(&rows[2]) <= rms(&rows[1]) && rms(&rows[1]) < 1.0,
+        "{rows:?}"
+    );
+    for bad in [
+        ["--iterations", "0"],
+        ["--fraction", "0"],
+        ["--rate", "0.5"],
+    ] {
+        let out = run(&["bench", "solvers", "--scenes", "sheet", bad[0], bad[1]]);
+        assert_eq!(out.status.code(), Some(2), "{bad:?}");
+    }
 }
 
 #[test]
