@@ -90,6 +90,7 @@ fn scene_seeds() -> Vec<Vec<u8>> {
         "letter_b.ron",
         "sculpt_letter.ron",
         "sphere_poke.ron",
+        "sphere_poke_local_global.ron",
     ]
     .iter()
     .map(|name| asset(&format!("scenes/{name}")))
@@ -233,7 +234,7 @@ fn every_input_is_an_error_or_a_valid_result_within_its_memory() {
     );
     check(
         CASES,
-        (0usize..4, prop::collection::vec(mutation(), 1..6)),
+        (0usize..5, prop::collection::vec(mutation(), 1..6)),
         |(which, mutations)| {
             let bytes = mutate(scene_seeds().swap_remove(which), &mutations);
             read_scene_checked("mutated scene", &bytes);

@@ -48,13 +48,17 @@ pub enum ImplicitSolver {
     /// equilibrium. Contacts are projected after the step, as the explicit integrators take
     /// them (CG holds them inside its solve). See `docs/ARCHITECTURE.md`.
     LocalGlobal {
-        /// Iterations per step, at least 1.
+        /// Iterations per step, 1 to [`MAX_LOCAL_GLOBAL_ITERATIONS`].
         iterations: u32,
     },
 }
 
 /// The local/global iterations a step takes unless told otherwise.
 pub const DEFAULT_LOCAL_GLOBAL_ITERATIONS: u32 = 2;
+
+/// The most local/global iterations a step may take (a step's cost grows with them and
+/// nothing stops them early).
+pub const MAX_LOCAL_GLOBAL_ITERATIONS: u32 = 1000;
 
 impl ImplicitSolver {
     /// The local/global solver with [`DEFAULT_LOCAL_GLOBAL_ITERATIONS`].
@@ -278,9 +282,11 @@ impl SolverConfig {
                 "CG needs at least one iteration",
             ));
         }
-        if self.implicit_solver == (ImplicitSolver::LocalGlobal { iterations: 0 }) {
+        if let ImplicitSolver::LocalGlobal { iterations } = self.implicit_solver
+            && !(1..=MAX_LOCAL_GLOBAL_ITERATIONS).contains(&iterations)
+        {
             return Err(SolverError::InvalidConfig(
-                "local/global steps need at least one iteration",
+                "local/global steps take 1 to 1000 iterations",
             ));
         }
         if self.substeps == (SubstepPolicy::Auto { max_substeps: 0 }) {

@@ -93,8 +93,9 @@ pub use config::{
     BendingModel, CURVATURE_POISSON_RATIO, DEFAULT_BENDING_DAMPING, DEFAULT_BENDING_MODULUS,
     DEFAULT_LOCAL_GLOBAL_ITERATIONS, DEFAULT_YIELD_ANGLE, DEFAULT_YIELD_STRAIN, DampingModel,
     HINGE_PLATE_FACTOR, HINGE_POISSON_RATIO, ImplicitSolver, InstabilityResponse, Integrator,
-    MaterialUnits, Plasticity, RUNAWAY_DIAGONALS_PER_SECOND, RUNAWAY_MIN_SPEED,
-    SHEET_LATTICE_FACTOR, SolverConfig, SpringMaterial, SubstepPolicy, UnknownIntegrator,
+    MAX_LOCAL_GLOBAL_ITERATIONS, MaterialUnits, Plasticity, RUNAWAY_DIAGONALS_PER_SECOND,
+    RUNAWAY_MIN_SPEED, SHEET_LATTICE_FACTOR, SolverConfig, SpringMaterial, SubstepPolicy,
+    UnknownIntegrator,
 };
 use parts::non_negative;
 pub use parts::{

@@ -634,14 +634,19 @@ mod tests {
     }
 
     #[test]
-    fn a_step_needs_an_iteration() {
-        let config = SolverConfig {
-            implicit_solver: ImplicitSolver::LocalGlobal { iterations: 0 },
-            ..SolverConfig::default()
-        };
-        assert!(matches!(
-            config.validate(),
-            Err(SolverError::InvalidConfig(_))
-        ));
+    fn a_step_takes_one_to_a_thousand_iterations() {
+        for (iterations, valid) in [(0, false), (1, true), (1000, true), (1001, false)] {
+            let config = SolverConfig {
+                implicit_solver: ImplicitSolver::LocalGlobal { iterations },
+                ..SolverConfig::default()
+            };
+            assert_eq!(config.validate().is_ok(), valid, "{iterations}");
+            if !valid {
+                assert!(matches!(
+                    config.validate(),
+                    Err(SolverError::InvalidConfig(_))
+                ));
+            }
+        }
     }
 }

@@ -7,7 +7,7 @@
 use std::fmt;
 use std::path::PathBuf;
 
-use bevy_point_springs::core::solver::{ImplicitSolver, Integrator};
+use bevy_point_springs::core::solver::{ImplicitSolver, Integrator, MAX_LOCAL_GLOBAL_ITERATIONS};
 use serde::Serialize;
 
 use super::report::measure::{error, run_scene};
@@ -15,9 +15,6 @@ use super::report::scenes::ReportScene;
 use crate::args::{BendingArg, JsonFlag};
 use crate::failure::Failure;
 use crate::report::Report;
-
-/// Most local/global iterations `bench solvers` runs a step with.
-const MAX_ITERATIONS: u32 = 1000;
 
 /// Arguments of `bench solvers`.
 #[derive(Debug, clap::Args)]
@@ -136,10 +133,10 @@ pub fn run(args: &Args) -> Result<(), Failure> {
     if let Some(&bad) = args
         .iterations
         .iter()
-        .find(|&&i| !(1..=MAX_ITERATIONS).contains(&i))
+        .find(|&&i| !(1..=MAX_LOCAL_GLOBAL_ITERATIONS).contains(&i))
     {
         return Err(Failure::bad_input(format!(
-            "--iterations {bad}: each must be between 1 and {MAX_ITERATIONS}"
+            "--iterations {bad}: each must be between 1 and {MAX_LOCAL_GLOBAL_ITERATIONS}"
         )));
     }
     let dt = 1.0 / args.rate;
