@@ -46,8 +46,9 @@ use crate::core::solver::{
     SpringMaterial, Springs, StateParts, StatePartsMut, Stepper,
 };
 
-/// The first bytes of a saved game (the format's name and version).
-pub const SAVED_GAME_MAGIC: &[u8; 8] = b"PSGAME1\n";
+/// The first bytes of a saved game (the format's name and version: 2 since the solver's
+/// settings gained `implicit_solver`; version 1 files are refused as foreign).
+pub const SAVED_GAME_MAGIC: &[u8; 8] = b"PSGAME2\n";
 
 /// The name a surface is saved and loaded under. Surfaces without one are not saved; a
 /// name must be unique among the surfaces saved.

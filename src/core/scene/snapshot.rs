@@ -25,8 +25,9 @@ use crate::core::solver::{SolverError, SolverState};
 use crate::core::transfer::TransferError;
 use crate::core::transfer::resample::ResampleReport;
 
-/// The first bytes of a snapshot file: a name and the format's version (1).
-pub const SNAPSHOT_MAGIC: &[u8; 8] = b"PSSNAP\x00\x01";
+/// The first bytes of a snapshot file: a name and the format's version (2: the solver's
+/// settings gained `implicit_solver`; version 1 files are refused as foreign).
+pub const SNAPSHOT_MAGIC: &[u8; 8] = b"PSSNAP\x00\x02";
 
 /// A running scene's state (see the module docs).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
