@@ -5,7 +5,7 @@
 //!
 //! The crate has two layers:
 //!
-//! * [`core`] — pure Rust on plain slices (glam, spade, kiddo; no Bevy): point-cloud I/O,
+//! * [`core`] — pure Rust on plain slices (glam, kiddo, faer; no Bevy): point-cloud I/O,
 //!   k-NN, PCA normals with consistent orientation, procedural test surfaces, the paper's
 //!   tangent-plane Delaunay simplification (§3), the spring network with masses (§4), the
 //!   dynamics of eq 2–6 (forces, explicit, symplectic and implicit Euler, stable-step

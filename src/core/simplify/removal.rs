@@ -157,14 +157,16 @@ impl<'a> State<'a> {
     /// Evaluates every remaining point in parallel (the initial pass).
     pub(super) fn evaluate_all(&mut self) {
         let all: Vec<u32> = (0..self.positions.len() as u32).collect();
-        self.areas = self.evaluate_batch(&all);
+        self.areas = self.evaluate_batch(&all, true);
     }
 
     /// Re-evaluates `points` in parallel against the current tree and requeues them.
-    /// Returns each one's share of the area (see [`Simplification::point_areas`]).
-    fn evaluate_batch(&mut self, points: &[u32]) -> Vec<f32> {
+    /// Returns each one's share of the area (see [`Simplification::point_areas`]) when
+    /// `with_areas` says so (only the first pass needs them), else nothing.
+    fn evaluate_batch(&mut self, points: &[u32], with_areas: bool) -> Vec<f32> {
         let row_len = self.k + NEIGHBOUR_SPARES;
-        let results: Vec<(RingShape, u64, f32, Reach, Vec<u32>)> = {
+        type Evaluated = (RingShape, u64, f32, Reach, Vec<u32>, (u64, u64));
+        let results: Vec<Evaluated> = {
             let this = &*self;
             points
                 .par_iter()
@@ -172,7 +174,8 @@ impl<'a> State<'a> {
                 .map_init(Scratch::default, |scratch, &i| {
                     let mut row = vec![NONE; row_len];
                     let (shape, mask, reach) = this.evaluate(i, scratch, &mut row);
-                    let area = if shape.degenerate
+                    let area = if !with_areas
+                        || shape.degenerate
                         || twin_before(i as usize, &row[..scratch.points.len()], this.positions)
                     {
                         0.0
@@ -183,14 +186,17 @@ impl<'a> State<'a> {
                             &scratch.ring,
                         )
                     };
-                    (shape, mask, area, reach, row)
+                    let changes = row_changes(this.row(i), &row[..this.k]);
+                    (shape, mask, area, reach, row, changes)
                 })
                 .collect()
         };
-        let mut areas = Vec::with_capacity(points.len());
-        for (&i, (shape, mask, area, reach, row)) in points.iter().zip(results) {
-            self.apply(i, shape, mask, reach, &row);
-            areas.push(area);
+        let mut areas = Vec::with_capacity(if with_areas { points.len() } else { 0 });
+        for (&i, (shape, mask, area, reach, row, changes)) in points.iter().zip(results) {
+            self.apply(i, shape, mask, reach, &row, changes);
+            if with_areas {
+                areas.push(area);
+            }
         }
         areas
     }
@@ -296,8 +302,17 @@ impl<'a> State<'a> {
         }
     }
 
-    /// Records a fresh evaluation of `i` and queues it.
-    fn apply(&mut self, i: u32, shape: RingShape, mask: u64, reach: Reach, row: &[u32]) {
+    /// Records a fresh evaluation of `i` and queues it. `changes`: its [`row_changes`]
+    /// against its current row.
+    fn apply(
+        &mut self,
+        i: u32,
+        shape: RingShape,
+        mask: u64,
+        reach: Reach,
+        row: &[u32],
+        changes: (u64, u64),
+    ) {
         let k = self.k;
         let iu = i as usize;
         self.queries += usize::from(reach.queried);
@@ -306,19 +321,15 @@ impl<'a> State<'a> {
         self.reach[iu] = reach.farthest;
         // Only neighbours that left or entered the row change reverse lists (usually one or
         // two of k).
-        let old_row = &self.knn[iu * k..(iu + 1) * k];
-        for &old in old_row {
-            if old != NONE
-                && !row.contains(&old)
-                && let Some(pos) = self.rev[old as usize].iter().position(|&x| x == i)
-            {
-                self.rev[old as usize].swap_remove(pos);
+        let (left, entered) = changes;
+        for slot in Bits(left) {
+            let old = self.knn[iu * k + slot] as usize;
+            if let Some(pos) = self.rev[old].iter().position(|&x| x == i) {
+                self.rev[old].swap_remove(pos);
             }
         }
-        for &new in row {
-            if new != NONE && !self.knn[iu * k..(iu + 1) * k].contains(&new) {
-                self.rev[new as usize].push(i);
-            }
+        for slot in Bits(entered) {
+            self.rev[row[slot] as usize].push(i);
         }
         self.knn[iu * k..(iu + 1) * k].copy_from_slice(row);
         self.shapes[iu] = shape;
@@ -333,6 +344,12 @@ impl<'a> State<'a> {
         }
     }
 
+    /// Point `i`'s current neighbour row (k slots).
+    fn row(&self, i: u32) -> &[u32] {
+        let iu = i as usize;
+        &self.knn[iu * self.k..(iu + 1) * self.k]
+    }
+
     /// Re-evaluates one point (sequential path).
     fn reevaluate(&mut self, i: u32) {
         let mut scratch = std::mem::take(&mut self.scratch);
@@ -340,7 +357,8 @@ impl<'a> State<'a> {
         let len = self.k + NEIGHBOUR_SPARES;
         let (shape, mask, reach) = self.evaluate(i, &mut scratch, &mut row[..len]);
         self.scratch = scratch;
-        self.apply(i, shape, mask, reach, &row[..len]);
+        let changes = row_changes(self.row(i), &row[..self.k]);
+        self.apply(i, shape, mask, reach, &row[..len], changes);
     }
 
     /// Removes point `i`.
@@ -416,7 +434,7 @@ impl<'a> State<'a> {
             if stale.is_empty() {
                 return stop;
             }
-            let _ = self.evaluate_batch(&stale);
+            self.evaluate_batch(&stale, false);
             let threshold = config.max_diameter.unwrap_or(f32::INFINITY);
             let below = stale
                 .iter()
@@ -556,19 +574,41 @@ impl<'a> State<'a> {
     /// exact: the stale keys among twice as many are judged again together (on every
     /// thread), until the front `look` are all clean. Stale keys are lower bounds, so no
     /// point outside the window has a smaller key.
+    ///
+    /// The wide window is chosen from every remaining point once; after a judgement its keys
+    /// are refreshed and the front chosen again within it, as long as `look` of them are
+    /// still below the largest key it was chosen with (everything outside is above that).
+    /// Only when too few are does it go back to every point.
     fn exact_window(&mut self, look: usize, window: &mut Vec<(u32, u32, u32)>) {
         self.remaining.retain(|&i| self.alive[i as usize]);
+        let mut bound = None;
         loop {
-            window.clear();
-            window.extend(
-                self.remaining
-                    .iter()
-                    .map(|&i| (self.keys[i as usize], i, self.generation[i as usize])),
-            );
-            let wide = (STALE_WINDOW * look).min(window.len());
-            if wide < window.len() {
-                window.select_nth_unstable(wide.max(1) - 1);
-                window.truncate(wide);
+            match bound {
+                None => {
+                    window.clear();
+                    window.extend(
+                        self.remaining
+                            .iter()
+                            .map(|&i| (self.keys[i as usize], i, self.generation[i as usize])),
+                    );
+                    let wide = (STALE_WINDOW * look).min(window.len());
+                    bound = Some(if wide < window.len() {
+                        window.select_nth_unstable(wide.max(1) - 1);
+                        window.truncate(wide);
+                        window[wide.max(1) - 1]
+                    } else {
+                        (u32::MAX, u32::MAX, u32::MAX)
+                    });
+                }
+                Some(limit) => {
+                    for e in window.iter_mut() {
+                        *e = (self.keys[e.1 as usize], e.1, self.generation[e.1 as usize]);
+                    }
+                    if window.iter().filter(|&&e| e <= limit).count() < look.min(window.len()) {
+                        bound = None;
+                        continue;
+                    }
+                }
             }
             let front = look.min(window.len());
             if front > 0 && front < window.len() {
@@ -586,7 +626,7 @@ impl<'a> State<'a> {
                 .collect();
             // In index order, so the rings are judged alike whatever the thread count.
             stale.sort_unstable();
-            let _ = self.evaluate_batch(&stale);
+            self.evaluate_batch(&stale, false);
         }
     }
 
@@ -608,7 +648,7 @@ impl<'a> State<'a> {
         let stale: Vec<u32> = (0..self.positions.len() as u32)
             .filter(|&i| self.alive[i as usize] && self.dirty[i as usize])
             .collect();
-        let _ = self.evaluate_batch(&stale);
+        self.evaluate_batch(&stale, false);
         let kept: Vec<u32> = (0..self.positions.len() as u32)
             .filter(|&i| self.alive[i as usize])
             .collect();
@@ -629,6 +669,34 @@ impl<'a> State<'a> {
             projected: None,
             point_areas: std::mem::take(&mut self.areas),
         }
+    }
+}
+
+/// Which slots of a neighbour row `old` hold a point that `new` does not (bit s = slot s),
+/// and which slots of `new` hold one that `old` does not: the reverse lists to update.
+fn row_changes(old: &[u32], new: &[u32]) -> (u64, u64) {
+    let changed = |from: &[u32], to: &[u32]| {
+        from.iter()
+            .enumerate()
+            .filter(|&(_, &j)| j != NONE && !to.contains(&j))
+            .fold(0u64, |m, (slot, _)| m | (1u64 << slot))
+    };
+    (changed(old, new), changed(new, old))
+}
+
+/// The set bits of a mask, lowest first.
+struct Bits(u64);
+
+impl Iterator for Bits {
+    type Item = usize;
+
+    fn next(&mut self) -> Option<usize> {
+        if self.0 == 0 {
+            return None;
+        }
+        let bit = self.0.trailing_zeros() as usize;
+        self.0 &= self.0 - 1;
+        Some(bit)
     }
 }
 
