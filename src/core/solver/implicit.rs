@@ -574,7 +574,7 @@ fn assemble(
 
 /// Below this share of its trace an axis of the inertia tensor counts as empty (the points
 /// on one line turn about it with no inertia, and no torque can act about it).
-pub(super) const FLAT_INERTIA: f64 = 1e-12;
+const FLAT_INERTIA: f64 = 1e-12;
 
 /// Makes the step's internal impulses sum to no force and no torque, as the internal forces
 /// themselves do (springs and their axial damping are central; hinges and the gas depend only
@@ -635,16 +635,9 @@ fn keep_momenta(
     for i in 0..n {
         let r = points.x.get(i).as_dvec3() - centre;
         torque += r.cross(s.own[i] * s.dv[i] - s.q[i]);
-        inertia +=
-            s.own[i] * (DMat3::from_diagonal(DVec3::splat(r.length_squared())) - outer(r, r));
+        inertia += point_inertia(s.own[i], r);
     }
-    let trace = inertia.x_axis.x + inertia.y_axis.y + inertia.z_axis.z;
-    let spin = if trace > 0.0 {
-        let regularised = inertia + DMat3::from_diagonal(DVec3::splat(FLAT_INERTIA * trace));
-        -(regularised.inverse() * torque)
-    } else {
-        DVec3::ZERO
-    };
+    let spin = cancelling_spin(inertia, torque);
     let shift = -sum / weight;
     if !(shift.is_finite() && spin.is_finite()) {
         return;
@@ -652,6 +645,24 @@ fn keep_momenta(
     for i in 0..n {
         let r = points.x.get(i).as_dvec3() - centre;
         s.dv[i] += shift + spin.cross(r);
+    }
+}
+
+/// The inertia tensor of mass `m` at `r` from the centre.
+pub(super) fn point_inertia(m: f64, r: DVec3) -> DMat3 {
+    m * (DMat3::from_diagonal(DVec3::splat(r.length_squared())) - outer(r, r))
+}
+
+/// The spin whose angular momentum cancels `torque` (an impulse's moment) for a body of
+/// `inertia`, regularised by [`FLAT_INERTIA`] of its trace so that a flat or linear body
+/// still inverts; none for a body without inertia.
+pub(super) fn cancelling_spin(inertia: DMat3, torque: DVec3) -> DVec3 {
+    let trace = inertia.x_axis.x + inertia.y_axis.y + inertia.z_axis.z;
+    if trace > 0.0 {
+        let regularised = inertia + DMat3::from_diagonal(DVec3::splat(FLAT_INERTIA * trace));
+        -(regularised.inverse() * torque)
+    } else {
+        DVec3::ZERO
     }
 }
 

@@ -57,7 +57,7 @@ use glam::{DMat3, DVec3};
 
 use super::DampingModel;
 use super::contact::step::project;
-use super::implicit::FLAT_INERTIA;
+use super::implicit::{cancelling_spin, point_inertia};
 use super::parts::{ExternalForces, PointState};
 use super::stepper::{Model, Stepper};
 
@@ -407,17 +407,9 @@ impl Stepper {
             let m = f64::from(model.masses.mass[i]);
             let r = start.x.get(i).as_dvec3() - centre;
             torque += r.cross(impulse(i));
-            inertia += m
-                * (DMat3::from_diagonal(DVec3::splat(r.length_squared()))
-                    - DMat3::from_cols(r * r.x, r * r.y, r * r.z));
+            inertia += point_inertia(m, r);
         }
-        let trace = inertia.x_axis.x + inertia.y_axis.y + inertia.z_axis.z;
-        let spin = if trace > 0.0 {
-            let regularised = inertia + DMat3::from_diagonal(DVec3::splat(FLAT_INERTIA * trace));
-            -(regularised.inverse() * torque)
-        } else {
-            DVec3::ZERO
-        };
+        let spin = cancelling_spin(inertia, torque);
         let shift = -sum / weight;
         if !(shift.is_finite() && spin.is_finite()) {
             return;
