@@ -34,7 +34,13 @@ pub(super) fn build_once(
                 scratch.clear();
                 scratch.extend(row.iter().map(|&j| positions[j as usize]));
                 let mut ring = Vec::new();
-                let shape = builder.build(positions[i], oriented[i], scratch, Some(&mut ring));
+                let shape = builder.build(
+                    positions[i],
+                    oriented[i],
+                    scratch,
+                    (i as u32, row),
+                    Some(&mut ring),
+                );
                 let ring = ring
                     .into_iter()
                     .map(|(slot, face)| (row[slot as usize], face))

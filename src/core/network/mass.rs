@@ -91,7 +91,13 @@ pub fn dense_point_areas(
                     neighbours.clear();
                     neighbours.extend(found.iter().map(|&j| positions[j as usize]));
                     ring.clear();
-                    let shape = rings.build(positions[i], normals[i], &neighbours, Some(&mut ring));
+                    let shape = rings.build(
+                        positions[i],
+                        normals[i],
+                        &neighbours,
+                        (i as u32, &found),
+                        Some(&mut ring),
+                    );
                     if shape.degenerate || twin_before(i, &found, positions) {
                         return 0.0;
                     }

@@ -231,6 +231,7 @@ impl<'a> State<'a> {
             p,
             self.normals[i as usize],
             &scratch.points,
+            (i, &row[..scratch.points.len()]),
             Some(&mut scratch.ring),
         );
         let mask = scratch

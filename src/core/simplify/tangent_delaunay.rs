@@ -50,6 +50,13 @@ pub const MAX_ELEVATION_DEG: f32 = 60.0;
 /// Two points closer than this fraction of the neighbourhood size coincide.
 pub const COINCIDENT_REL: f32 = 1.0e-6;
 
+/// A lifted in-circle determinant smaller than this fraction of the sum of its terms' sizes
+/// is a tie (four points on one circle): f64 rounds the determinant of exact f32 offsets to
+/// about 10^-15 of that sum. The points of a regular grid stored in f32 are off their common
+/// circles by about 10^-6 of the spacing, far above this; they are decided by their
+/// positions, the same way in every ring of a flat cloud, as the offsets are exact.
+pub const TIE_REL: f64 = 1.0e-12;
+
 /// Marks the centre in the star's hull scan (an index no neighbour has).
 const CENTRE: u32 = u32::MAX;
 
@@ -131,9 +138,11 @@ pub(crate) fn twin_before(i: usize, neighbours: &[u32], positions: &[Vec3]) -> b
 
 /// Reusable scratch space for [`RingBuilder::build`] (one per thread).
 pub struct RingBuilder {
-    /// Projected neighbours kept so far, as (slot, position); sorted by angle once the star
-    /// is found.
-    kept: Vec<(u32, DVec2)>,
+    /// Projected neighbours kept so far, as (slot, position, id); sorted by angle once the
+    /// star is found.
+    kept: Vec<(u32, DVec2, u32)>,
+    /// The centre's id (see [`RingBuilder::build`]).
+    centre_id: u32,
     /// The star's hull scan: indices into `kept`, or [`CENTRE`].
     hull: Vec<u32>,
     /// Ring slots in CCW order, their projected positions, and whether the face after each is
@@ -160,6 +169,7 @@ impl RingBuilder {
     pub fn new() -> Self {
         Self {
             kept: Vec::new(),
+            centre_id: 0,
             hull: Vec::new(),
             fan: Vec::new(),
             region: Vec::new(),
@@ -171,13 +181,21 @@ impl RingBuilder {
     /// into `neighbours`, counter-clockwise around `normal`, starting after the widest gap
     /// when the ring is open, each with whether the triangle between it and the next ring
     /// vertex is surface.
+    ///
+    /// `ids` names the centre and each neighbour (`ids.1[i]` for `neighbours[i]`) with an
+    /// index unique in the cloud: where four points lie on one circle (a regular grid) every
+    /// ring that holds them takes the same diagonal, chosen by these indices (see
+    /// [`TIE_REL`]).
     pub fn build(
         &mut self,
         centre: Vec3,
         normal: Vec3,
         neighbours: &[Vec3],
+        ids: (u32, &[u32]),
         ring: Option<&mut Vec<(u32, bool)>>,
     ) -> RingShape {
+        debug_assert_eq!(ids.1.len(), neighbours.len());
+        self.centre_id = ids.0;
         let mut shape = RingShape {
             diameter: f32::INFINITY,
             degenerate: true,
@@ -195,7 +213,7 @@ impl RingBuilder {
             shape.coincident = !neighbours.is_empty() && scale == 0.0;
             return shape;
         }
-        shape.coincident = self.project(centre, normal, neighbours, scale);
+        shape.coincident = self.project(centre, normal, neighbours, ids.1, scale);
         if self.kept.len() < 2 {
             return shape;
         }
@@ -233,28 +251,41 @@ impl RingBuilder {
     /// Projects the `neighbours` onto the tangent plane at `centre` (scaled by `scale`) into
     /// `self.kept`, skipping those too steep above or below it and repeats. Returns whether
     /// one coincides with the centre.
-    fn project(&mut self, centre: Vec3, normal: Vec3, neighbours: &[Vec3], scale: f32) -> bool {
+    ///
+    /// The offsets from the centre are taken in f64, where the difference of two f32
+    /// positions is exact: every ring of a flat cloud then sees its points where the others
+    /// see them, and decides a near-tie the same way.
+    fn project(
+        &mut self,
+        centre: Vec3,
+        normal: Vec3,
+        neighbours: &[Vec3],
+        ids: &[u32],
+        scale: f32,
+    ) -> bool {
         let mut coincident = false;
         let (t1, t2) = normal.any_orthonormal_pair();
-        let max_elevation = MAX_ELEVATION_DEG.to_radians().tan();
-        let coincident2 = (COINCIDENT_REL * scale).powi(2);
+        let (t1, t2, n) = (t1.as_dvec3(), t2.as_dvec3(), normal.as_dvec3());
+        let max_elevation = f64::from(MAX_ELEVATION_DEG).to_radians().tan();
+        let coincident2 = f64::from(COINCIDENT_REL * scale).powi(2);
+        let (c, inv_scale) = (centre.as_dvec3(), 1.0 / f64::from(scale));
         self.kept.clear();
         for (slot, p) in neighbours.iter().enumerate() {
-            let v = *p - centre;
+            let v = p.as_dvec3() - c;
             if v.length_squared() <= coincident2 {
                 coincident = true;
                 continue;
             }
             let (x, y) = (v.dot(t1), v.dot(t2));
             let tangential = (x * x + y * y).sqrt();
-            if v.dot(normal).abs() > max_elevation * tangential {
+            if v.dot(n).abs() > max_elevation * tangential {
                 continue;
             }
-            let q = DVec2::new(f64::from(x), f64::from(y)) / f64::from(scale);
-            if self.kept.iter().any(|&(_, k)| k == q) {
+            let q = DVec2::new(x, y) * inv_scale;
+            if self.kept.iter().any(|k| k.1 == q) {
                 continue;
             }
-            self.kept.push((slot as u32, q));
+            self.kept.push((slot as u32, q, ids[slot]));
         }
         coincident
     }
@@ -325,7 +356,7 @@ impl RingBuilder {
     /// Sorts `self.kept` counter-clockwise by angle (from the +x axis), the farther of two
     /// in one direction first.
     fn sort_by_angle(&mut self) {
-        self.kept.sort_unstable_by(|&(i, a), &(j, b)| {
+        self.kept.sort_unstable_by(|&(i, a, _), &(j, b, _)| {
             pseudo_angle(a)
                 .total_cmp(&pseudo_angle(b))
                 .then(b.length_squared().total_cmp(&a.length_squared()))
@@ -406,7 +437,13 @@ impl RingBuilder {
         } else if c == CENTRE {
             pos(a).perp_dot(pos(b)) > 0.0
         } else {
-            lifted_orientation(pos(a), pos(b), pos(c)) > 0.0
+            let id = |i: u32| self.kept[i as usize].2;
+            in_circle_outside(
+                (pos(a), id(a)),
+                (pos(b), id(b)),
+                (pos(c), id(c)),
+                self.centre_id,
+            )
         }
     }
 
@@ -418,7 +455,7 @@ impl RingBuilder {
         self.fan.clear();
         let n = self.hull.len();
         for r in 0..n {
-            let (slot, a) = self.kept[self.hull[r] as usize];
+            let (slot, a, _) = self.kept[self.hull[r] as usize];
             let b = self.kept[self.hull[(r + 1) % n] as usize].1;
             let outside = n < 2 || (on_hull && r == n - 1);
             // The face (centre, a, b): a proper counter-clockwise triangle (an angle in (0, π)
@@ -471,6 +508,42 @@ fn lifted_orientation(a: DVec2, b: DVec2, c: DVec2) -> f64 {
     a.x * (b.y * lc - lb * c.y) - a.y * (b.x * lc - lb * c.x) + la * (b.x * c.y - b.y * c.x)
 }
 
+/// Whether the circle through the origin (the centre, named `centre_id`), `a` and `b` leaves
+/// `c` outside ([`lifted_orientation`] > 0), each point given with its id.
+///
+/// Where the four points lie on one circle (the determinant within [`TIE_REL`] of its terms)
+/// the tie is broken by simulation of simplicity (Edelsbrunner and Mücke 1990): each point's
+/// lifted height is raised by an infinitesimal that is larger the smaller its id, and the sign
+/// is that of the determinant's derivative for the point with the smallest id, the first
+/// whose cofactor is not zero. The four points and their ids are the same in every ring that
+/// holds them, so every such ring takes the same diagonal of the quadrilateral; a strict test
+/// alone drops the vertex shared by the two triangles, and the rings of a square grid then
+/// disagree on every cell's diagonal.
+fn in_circle_outside(a: (DVec2, u32), b: (DVec2, u32), c: (DVec2, u32), centre_id: u32) -> bool {
+    let ((a, ia), (b, ib), (c, ic)) = (a, b, c);
+    let (la, lb, lc) = (a.length_squared(), b.length_squared(), c.length_squared());
+    let det = lifted_orientation(a, b, c);
+    // The neighbours are scaled into the unit disc, where the terms add up to at most 6.
+    if det.abs() > TIE_REL * 6.0 {
+        return det > 0.0;
+    }
+    let terms = a.x.abs() * (b.y.abs() * lc + lb * c.y.abs())
+        + a.y.abs() * (b.x.abs() * lc + lb * c.x.abs())
+        + la * (b.x * c.y).abs()
+        + la * (b.y * c.x).abs();
+    if det.abs() > TIE_REL * terms {
+        return det > 0.0;
+    }
+    // d det / d (lift): a → b × c, b → c × a, c → a × b, the centre (origin) → −orient(a, b, c).
+    let (bc, ca, ab) = (b.perp_dot(c), c.perp_dot(a), a.perp_dot(b));
+    let mut by_id = [(ia, bc), (ib, ca), (ic, ab), (centre_id, -(ab + bc + ca))];
+    by_id.sort_unstable_by_key(|&(id, _)| id);
+    by_id
+        .iter()
+        .find(|&&(_, d)| d != 0.0)
+        .is_some_and(|&(_, d)| d > 0.0)
+}
+
 /// Circumradius of the triangle (origin, `a`, `b`); infinite when degenerate.
 fn circumradius(a: DVec2, b: DVec2) -> f64 {
     let twice_area = a.perp_dot(b).abs();
@@ -494,6 +567,21 @@ fn fan_angle(a: DVec2, b: DVec2) -> f64 {
 mod tests {
     use super::*;
 
+    impl RingBuilder {
+        /// [`RingBuilder::build`] with the neighbours named by their slots and the centre
+        /// after them.
+        fn build_local(
+            &mut self,
+            centre: Vec3,
+            normal: Vec3,
+            neighbours: &[Vec3],
+            ring: Option<&mut Vec<(u32, bool)>>,
+        ) -> RingShape {
+            let ids: Vec<u32> = (0..neighbours.len() as u32).collect();
+            self.build(centre, normal, neighbours, (ids.len() as u32, &ids), ring)
+        }
+    }
+
     fn hexagon(r: f32) -> Vec<Vec3> {
         (0..6)
             .map(|i| {
@@ -507,7 +595,7 @@ mod tests {
     fn hexagon_ring_is_closed_and_ccw() {
         let mut b = RingBuilder::new();
         let mut ring = Vec::new();
-        let s = b.build(Vec3::ZERO, Vec3::Z, &hexagon(1.0), Some(&mut ring));
+        let s = b.build_local(Vec3::ZERO, Vec3::Z, &hexagon(1.0), Some(&mut ring));
         assert!(!s.open && !s.degenerate && !s.coincident);
         assert!((s.diameter - 2.0).abs() < 1e-5, "{}", s.diameter);
         let hex_area = 1.5 * 3f32.sqrt();
@@ -521,7 +609,7 @@ mod tests {
         }
         // Seen from -Z the order reverses.
         let mut rev = Vec::new();
-        b.build(Vec3::ZERO, -Vec3::Z, &hexagon(1.0), Some(&mut rev));
+        b.build_local(Vec3::ZERO, -Vec3::Z, &hexagon(1.0), Some(&mut rev));
         let rev: Vec<u32> = rev.iter().map(|&(slot, _)| slot).collect();
         for w in 0..6 {
             assert_eq!((rev[(w + 1) % 6] + 1) % 6, rev[w]);
@@ -538,7 +626,7 @@ mod tests {
             })
             .collect();
         let mut ring = Vec::new();
-        let s = RingBuilder::new().build(Vec3::ZERO, Vec3::Z, &pts, Some(&mut ring));
+        let s = RingBuilder::new().build_local(Vec3::ZERO, Vec3::Z, &pts, Some(&mut ring));
         assert!(s.open && !s.degenerate);
         let slots: Vec<u32> = ring.iter().map(|&(slot, _)| slot).collect();
         assert_eq!(slots, vec![0, 1, 2, 3, 4]);
@@ -555,7 +643,7 @@ mod tests {
             let a = i as f32 * std::f32::consts::FRAC_PI_4;
             Vec3::new(a.cos(), a.sin(), 0.0)
         }));
-        let s = RingBuilder::new().build(Vec3::ZERO, Vec3::Z, &pts, None);
+        let s = RingBuilder::new().build_local(Vec3::ZERO, Vec3::Z, &pts, None);
         assert!(s.open);
         assert!(s.area < std::f32::consts::FRAC_PI_2 + 0.1);
     }
@@ -564,16 +652,16 @@ mod tests {
     fn degenerate_and_coincident_neighbourhoods() {
         let mut b = RingBuilder::new();
         let line: Vec<Vec3> = (1..6).map(|i| Vec3::X * i as f32).collect();
-        let s = b.build(Vec3::ZERO, Vec3::Z, &line, None);
+        let s = b.build_local(Vec3::ZERO, Vec3::Z, &line, None);
         assert!(s.degenerate && s.diameter.is_infinite());
         let mut with_dup = hexagon(1.0);
         with_dup.push(Vec3::ZERO);
-        let s = b.build(Vec3::ZERO, Vec3::Z, &with_dup, None);
+        let s = b.build_local(Vec3::ZERO, Vec3::Z, &with_dup, None);
         assert!(s.coincident && !s.degenerate);
         let all_same = vec![Vec3::ONE; 4];
-        let s = b.build(Vec3::ONE, Vec3::Z, &all_same, None);
+        let s = b.build_local(Vec3::ONE, Vec3::Z, &all_same, None);
         assert!(s.coincident && s.degenerate);
-        let s = b.build(Vec3::ZERO, Vec3::Z, &[], None);
+        let s = b.build_local(Vec3::ZERO, Vec3::Z, &[], None);
         assert!(s.degenerate && !s.coincident);
     }
 
@@ -617,7 +705,7 @@ mod tests {
                 .map(|&(r, t)| Vec3::new(r * (t * span).cos(), r * (t * span).sin(), 0.0))
                 .collect();
             let mut b = RingBuilder::new();
-            let shape = b.build(Vec3::ZERO, Vec3::Z, &neighbours, None);
+            let shape = b.build_local(Vec3::ZERO, Vec3::Z, &neighbours, None);
             let mut star: Vec<u32> = b.hull.iter().map(|&h| b.kept[h as usize].0).collect();
             star.sort_unstable();
             proptest::prop_assert_eq!(star, spade_star(&neighbours));
@@ -627,13 +715,94 @@ mod tests {
         }
     }
 
+    /// The faces of every ring of an `n` × `n` grid of spacing `h` in the plane through
+    /// `origin` spanned by `u` and `v` (unit normal `normal`), each as its sorted corners, for
+    /// the points at least two rows from the edge; the neighbours are the k = 12 nearest by
+    /// distance, then index.
+    fn grid_faces(n: usize, h: f32, origin: Vec3, (u, v): (Vec3, Vec3)) -> Vec<Vec<[u32; 3]>> {
+        let normal = u.cross(v).normalize();
+        let points: Vec<Vec3> = (0..n * n)
+            .map(|i| origin + h * ((i % n) as f32 * u + (i / n) as f32 * v))
+            .collect();
+        let mut b = RingBuilder::new();
+        (0..points.len())
+            .map(|i| {
+                let (x, y) = (i % n, i / n);
+                if x < 2 || y < 2 || x + 2 >= n || y + 2 >= n {
+                    return Vec::new();
+                }
+                let mut near: Vec<u32> = (0..points.len() as u32)
+                    .filter(|&j| j as usize != i)
+                    .collect();
+                near.sort_by(|&a, &c| {
+                    let d = |j: u32| points[j as usize].distance_squared(points[i]);
+                    d(a).total_cmp(&d(c)).then(a.cmp(&c))
+                });
+                near.truncate(12);
+                let neighbours: Vec<Vec3> = near.iter().map(|&j| points[j as usize]).collect();
+                let mut ring = Vec::new();
+                let shape = b.build(
+                    points[i],
+                    normal,
+                    &neighbours,
+                    (i as u32, &near),
+                    Some(&mut ring),
+                );
+                assert!(!shape.open && !shape.degenerate, "point {i}: {shape:?}");
+                (0..ring.len())
+                    .filter(|&r| ring[r].1)
+                    .map(|r| {
+                        let next = ring[(r + 1) % ring.len()].0;
+                        let mut face = [i as u32, near[ring[r].0 as usize], near[next as usize]];
+                        face.sort_unstable();
+                        face
+                    })
+                    .collect()
+            })
+            .collect()
+    }
+
+    /// Where four neighbours lie on one circle (every cell of a square grid), the rings of all
+    /// four take the same diagonal: each face of an inner point's ring is a face of its other
+    /// corners' rings. Exactly cocircular (spacing 0.5: the tie is broken by the ids), cocircular
+    /// to f32 rounding (0.025 off the origin, like `letter_b.ply`), and in a tilted plane.
+    #[test]
+    fn the_rings_of_a_grid_agree_on_every_diagonal() {
+        let tilted = Vec3::new(1.0, 2.0, 3.0).normalize().any_orthonormal_pair();
+        for (h, origin, basis) in [
+            (0.5, Vec3::ZERO, (Vec3::X, Vec3::Y)),
+            (0.025, Vec3::new(-0.975, -1.0, 0.0), (Vec3::X, Vec3::Y)),
+            (0.025, Vec3::new(0.3, -0.7, 0.2), tilted),
+        ] {
+            let n = 10;
+            let faces = grid_faces(n, h, origin, basis);
+            let mut checked = 0;
+            for (i, ring) in faces.iter().enumerate() {
+                for face in ring {
+                    for &corner in face.iter().filter(|&&c| c as usize != i) {
+                        let theirs = &faces[corner as usize];
+                        if theirs.is_empty() {
+                            continue;
+                        }
+                        assert!(
+                            theirs.contains(face),
+                            "spacing {h}: face {face:?} of point {i} is not in point {corner}'s ring {theirs:?}"
+                        );
+                        checked += 1;
+                    }
+                }
+            }
+            assert!(checked > 200, "{checked}");
+        }
+    }
+
     #[test]
     fn steep_neighbours_are_skipped() {
         // A point straight above the centre (the far side of a thin plate) is not projected.
         let mut pts = hexagon(1.0);
         pts.push(Vec3::new(0.1, 0.0, 0.5));
         let mut ring = Vec::new();
-        let s = RingBuilder::new().build(Vec3::ZERO, Vec3::Z, &pts, Some(&mut ring));
+        let s = RingBuilder::new().build_local(Vec3::ZERO, Vec3::Z, &pts, Some(&mut ring));
         assert!(!s.open);
         assert!(ring.iter().all(|&(slot, _)| slot != 6));
     }
