@@ -185,7 +185,7 @@ impl RingBuilder {
     /// `ids` names the centre and each neighbour (`ids.1[i]` for `neighbours[i]`) with an
     /// index unique in the cloud: where four points lie on one circle (a regular grid) every
     /// ring that holds them takes the same diagonal, chosen by these indices (see
-    /// [`TIE_REL`]).
+    /// [`TIE_REL`]). A neighbour past the end of `ids.1` ranks after every named point.
     pub fn build(
         &mut self,
         centre: Vec3,
@@ -194,7 +194,6 @@ impl RingBuilder {
         ids: (u32, &[u32]),
         ring: Option<&mut Vec<(u32, bool)>>,
     ) -> RingShape {
-        debug_assert_eq!(ids.1.len(), neighbours.len());
         self.centre_id = ids.0;
         let mut shape = RingShape {
             diameter: f32::INFINITY,
@@ -285,7 +284,8 @@ impl RingBuilder {
             if self.kept.iter().any(|k| k.1 == q) {
                 continue;
             }
-            self.kept.push((slot as u32, q, ids[slot]));
+            let id = ids.get(slot).copied().unwrap_or(u32::MAX);
+            self.kept.push((slot as u32, q, id));
         }
         coincident
     }
@@ -663,6 +663,11 @@ mod tests {
         assert!(s.coincident && s.degenerate);
         let s = b.build_local(Vec3::ZERO, Vec3::Z, &[], None);
         assert!(s.degenerate && !s.coincident);
+        // Too few ids: no panic, and where nothing ties the ring is the same.
+        let hex = hexagon(1.0);
+        let named = b.build_local(Vec3::ZERO, Vec3::Z, &hex, None);
+        let unnamed = b.build(Vec3::ZERO, Vec3::Z, &hex, (0, &[]), None);
+        assert_eq!(named, unnamed);
     }
 
     /// The centre's Delaunay neighbours among `neighbours` (in the plane z = 0, the centre
