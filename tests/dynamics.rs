@@ -6,8 +6,8 @@ use bevy_point_springs::core::fixtures::cloth::{
     CLOTH_DT, CLOTH_SIZE, CLOTH_STEPS, ReferenceCloth, cloth_grid, max_sag,
 };
 use bevy_point_springs::core::solver::{
-    DampingModel, Instability, InstabilityResponse, Integrator, STANDARD_GRAVITY, Solver,
-    SolverConfig, SolverError, SpringSpec, SubstepPolicy,
+    DampingModel, ImplicitSolver, Instability, InstabilityResponse, Integrator, STANDARD_GRAVITY,
+    Solver, SolverConfig, SolverError, SpringSpec, SubstepPolicy,
 };
 use glam::Vec3;
 
@@ -31,7 +31,11 @@ fn exact(t: f64) -> f64 {
 
 /// The displacement every step over `seconds`.
 fn trajectory(integrator: Integrator, h: f32, seconds: f64) -> Vec<f64> {
-    let mut s = oscillator(integrator);
+    trajectory_of(oscillator(integrator), h, seconds)
+}
+
+/// The displacement of `s`'s oscillator every step over `seconds`.
+fn trajectory_of(mut s: Solver, h: f32, seconds: f64) -> Vec<f64> {
     let steps = (seconds / f64::from(h)).round() as usize;
     let mut out = Vec::with_capacity(steps + 1);
     out.push(f64::from(s.position(1).x) - 1.0);
@@ -81,30 +85,53 @@ fn crossings_and_peaks(x: &[f64], h: f64) -> (Vec<f64>, Vec<f64>) {
     (crossings, peaks)
 }
 
-#[test]
-fn damped_oscillator_has_the_right_frequency_and_decay() {
+/// Checks a trajectory at step `h` against the closed form's period and decay rate.
+fn assert_period_and_decay(x: &[f64], h: f64, what: &str) {
     let w0 = (f64::from(OSC_STIFFNESS) / f64::from(OSC_MASS)).sqrt();
     let gamma = f64::from(OSC_DAMPING) / f64::from(OSC_MASS);
     let wd = (w0 * w0 - gamma * gamma / 4.0).sqrt();
     let period = 2.0 * PI / wd;
+    let (crossings, peaks) = crossings_and_peaks(x, h);
+    assert!(crossings.len() >= 3 && peaks.len() >= 3, "{what}");
+    let measured_period =
+        (crossings[crossings.len() - 1] - crossings[0]) / (crossings.len() - 1) as f64;
+    assert!(
+        (measured_period / period - 1.0).abs() < 2e-3,
+        "{what}: period {measured_period} vs {period}"
+    );
+    // Successive maxima shrink by e^{−γT/2}.
+    let decay = (peaks[0] / peaks[1]).ln() / period;
+    assert!(
+        (decay / (gamma / 2.0) - 1.0).abs() < 0.02,
+        "{what}: decay rate {decay} vs {}",
+        gamma / 2.0
+    );
+}
+
+#[test]
+fn damped_oscillator_has_the_right_frequency_and_decay() {
     let h = 1.0e-4;
     for integrator in Integrator::ALL {
         let x = trajectory(integrator, h as f32, 4.0);
-        let (crossings, peaks) = crossings_and_peaks(&x, h);
-        assert!(crossings.len() >= 3 && peaks.len() >= 3, "{integrator}");
-        let measured_period =
-            (crossings[crossings.len() - 1] - crossings[0]) / (crossings.len() - 1) as f64;
-        assert!(
-            (measured_period / period - 1.0).abs() < 2e-3,
-            "{integrator}: period {measured_period} vs {period}"
-        );
-        // Successive maxima shrink by e^{−γT/2}.
-        let decay = (peaks[0] / peaks[1]).ln() / period;
-        assert!(
-            (decay / (gamma / 2.0) - 1.0).abs() < 0.02,
-            "{integrator}: decay rate {decay} vs {}",
-            gamma / 2.0
-        );
+        assert_period_and_decay(&x, h, integrator.name());
+    }
+}
+
+/// The local/global solver keeps its iterate as offsets from the step's start in f64: with
+/// f32 positions, v = (x − x₀)/h rounded the offset (h·v, 10⁻⁵ here) to 6·10⁻⁸ of the
+/// position and the oscillator at h = 10⁻⁴ never crossed zero three times.
+#[test]
+fn the_local_global_step_swings_a_damped_oscillator_at_a_tiny_step() {
+    let h = 1.0e-4;
+    for iterations in [1, 2] {
+        let mut s = oscillator(Integrator::ImplicitEuler);
+        let config = SolverConfig {
+            implicit_solver: ImplicitSolver::LocalGlobal { iterations },
+            ..*s.config()
+        };
+        s.set_config(config).unwrap();
+        let x = trajectory_of(s, h as f32, 4.0);
+        assert_period_and_decay(&x, h, &format!("local/global ×{iterations}"));
     }
 }
 

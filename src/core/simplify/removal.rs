@@ -84,6 +84,8 @@ pub(super) struct State<'a> {
     duplicates_removed: usize,
     evaluations: usize,
     scratch: Scratch,
+    /// The neighbour rows of a batch of evaluations, k + [`NEIGHBOUR_SPARES`] each.
+    batch_rows: Vec<u32>,
 }
 
 /// Priority of a shape: its d; 0 for a point with a coincident neighbour; the smallest
@@ -157,6 +159,7 @@ impl<'a> State<'a> {
             duplicates_removed: 0,
             evaluations: 0,
             scratch: Scratch::default(),
+            batch_rows: Vec::new(),
         }
     }
 
@@ -171,15 +174,21 @@ impl<'a> State<'a> {
     /// `with_areas` says so (only the first pass needs them), else nothing.
     fn evaluate_batch(&mut self, points: &[u32], with_areas: bool) -> Vec<f32> {
         let row_len = self.k + NEIGHBOUR_SPARES;
-        type Evaluated = (RingShape, u64, f32, Reach, Vec<u32>, (u64, u64));
+        // The rows are written in place into one buffer kept between batches: an allocation
+        // per evaluation, made on a worker and freed on this thread, cost more than the
+        // copies (glibc's arenas).
+        let mut rows = std::mem::take(&mut self.batch_rows);
+        rows.clear();
+        rows.resize(points.len() * row_len, NONE);
+        type Evaluated = (RingShape, u64, f32, Reach, (u64, u64));
         let results: Vec<Evaluated> = {
             let this = &*self;
             points
                 .par_iter()
+                .zip(rows.par_chunks_mut(row_len))
                 .with_min_len(EVAL_CHUNK)
-                .map_init(Scratch::default, |scratch, &i| {
-                    let mut row = vec![NONE; row_len];
-                    let (shape, mask, reach) = this.evaluate(i, scratch, &mut row);
+                .map_init(Scratch::default, |scratch, (&i, row)| {
+                    let (shape, mask, reach) = this.evaluate(i, scratch, row);
                     let area = if !with_areas
                         || shape.degenerate
                         || twin_before(i as usize, &row[..scratch.points.len()], this.positions)
@@ -193,17 +202,19 @@ impl<'a> State<'a> {
                         )
                     };
                     let changes = row_changes(this.row(i), &row[..this.k]);
-                    (shape, mask, area, reach, row, changes)
+                    (shape, mask, area, reach, changes)
                 })
                 .collect()
         };
         let mut areas = Vec::with_capacity(if with_areas { points.len() } else { 0 });
-        for (&i, (shape, mask, area, reach, row, changes)) in points.iter().zip(results) {
-            self.apply(i, shape, mask, reach, &row, changes);
+        let evaluated = points.iter().zip(results).zip(rows.chunks_exact(row_len));
+        for ((&i, (shape, mask, area, reach, changes)), row) in evaluated {
+            self.apply(i, shape, mask, reach, row, changes);
             if with_areas {
                 areas.push(area);
             }
         }
+        self.batch_rows = rows;
         areas
     }
 
