@@ -79,12 +79,13 @@ pub mod prelude {
     pub use crate::plugin::render::{SpringGizmos, SurfelRender, SurfelRenderPlugin};
     #[cfg(feature = "plugin")]
     pub use crate::plugin::{
-        CloudAsset, DeformableSurface, DenseSurface, GrabMessage, GrabSettings, Grabs,
-        ModelMessage, ModelOutcome, PointSpringsPlugin, PointSpringsSystems, PreparationProgress,
-        PrepareAgain, PrepareAgainFailed, SaveGameError, SaveGameMessage, SaveGameOutcome,
-        SaveName, SceneAsset, SceneTimeline, SimulationPoints, StepOnce, SurfaceAnchors,
-        SurfaceForces, SurfaceHealth, SurfaceInView, SurfaceMasses, SurfaceMaterial,
-        SurfaceNetwork, SurfaceSettings, SurfaceSleep, SurfaceSprings, SurfaceStatus,
-        SurfaceStepper, SurfaceTimings, SurfaceUnstable, SurfaceWork, TransferTiming,
+        AttachPoints, AttachmentState, CloudAsset, DeformableSurface, DenseSurface, GrabMessage,
+        GrabSettings, Grabs, ModelMessage, ModelOutcome, PointSpringsPlugin, PointSpringsSystems,
+        PreparationProgress, PrepareAgain, PrepareAgainFailed, SaveGameError, SaveGameMessage,
+        SaveGameOutcome, SaveName, SceneAsset, SceneTimeline, SimulationPoints, StepOnce,
+        SurfaceAnchors, SurfaceAttachments, SurfaceForces, SurfaceHealth, SurfaceInView,
+        SurfaceMasses, SurfaceMaterial, SurfaceNetwork, SurfaceSettings, SurfaceSleep,
+        SurfaceSprings, SurfaceStatus, SurfaceStepper, SurfaceTimings, SurfaceUnstable,
+        SurfaceWork, TransferTiming,
     };
 }

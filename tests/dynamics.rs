@@ -565,3 +565,193 @@ fn the_default_cg_tolerance_keeps_the_motion_of_a_tight_solve() {
         "{iterations} {tight_iterations}"
     );
 }
+
+// ---------------------------------------------------------------------------------------
+// What holds the pinned points.
+
+/// What the step says held the pinned points ([`Solver::pin_impulses`]) balances the
+/// surface's momentum: over every step, the change of momentum is the pins' impulses plus
+/// gravity's, Σ m·g·t. A cloth held by two corners falls and swings for two seconds; with
+/// conjugate gradient the balance holds to the solve's tolerance, with an explicit step to
+/// f32 rounding, with two local/global iterations to what the unconverged iterate leaves.
+#[test]
+fn the_pins_take_what_the_surface_pulls_them_with() {
+    use glam::DVec3;
+    for (name, integrator, implicit_solver, dt, tolerance) in [
+        (
+            "implicit, CG",
+            Integrator::ImplicitEuler,
+            ImplicitSolver::ConjugateGradient,
+            1.0_f32 / 60.0,
+            1e-5,
+        ),
+        (
+            "implicit, local/global ×2",
+            Integrator::ImplicitEuler,
+            ImplicitSolver::LocalGlobal { iterations: 2 },
+            1.0 / 60.0,
+            3e-2,
+        ),
+        (
+            "symplectic",
+            Integrator::SymplecticEuler,
+            ImplicitSolver::ConjugateGradient,
+            1.0 / 600.0,
+            1e-5,
+        ),
+    ] {
+        let config = SolverConfig {
+            integrator,
+            implicit_solver,
+            gravity: STANDARD_GRAVITY,
+            drag: 0.0,
+            cg_tolerance: 1e-6,
+            ..SolverConfig::default()
+        };
+        let mut s = cloth_solver(12, |s| s, config, true);
+        s.set_measure_pins(true);
+        let n = s.len();
+        let momentum = |s: &Solver| -> DVec3 {
+            (0..n)
+                .map(|i| s.velocity(i).as_dvec3() * f64::from(s.mass(i)))
+                .sum()
+        };
+        let mass: f64 = (0..n).map(|i| f64::from(s.mass(i))).sum();
+        let start = momentum(&s);
+        let (mut pulled, mut time) = (DVec3::ZERO, 0.0);
+        let steps = (2.0 / f64::from(dt)).round() as usize;
+        for _ in 0..steps {
+            let report = s.step(dt).unwrap();
+            assert!(report.finite && !report.recovered, "{name}");
+            assert_eq!(s.pin_impulses().len(), n, "{name}");
+            pulled += s.pin_impulses().iter().map(|j| j.as_dvec3()).sum::<DVec3>();
+            time += f64::from(dt);
+        }
+        let gravity = STANDARD_GRAVITY.as_dvec3() * mass * time;
+        let change = momentum(&s) - start;
+        let off = (change - pulled - gravity).length() / gravity.length();
+        eprintln!(
+            "{name}: momentum change {change:.4}, pins {pulled:.4}, gravity {gravity:.4}: off by {off:.2e}"
+        );
+        assert!(off < tolerance, "{name}: the balance is off by {off:.2e}");
+        // The pins held more than nothing and pulled up.
+        assert!(pulled.y > 0.1 * gravity.length(), "{name}: {pulled}");
+        let pinned = (0..n).filter(|&i| s.is_fixed(i)).count();
+        let nonzero = s
+            .pin_impulses()
+            .iter()
+            .filter(|j| **j != Vec3::ZERO)
+            .count();
+        assert_eq!(nonzero, pinned, "{name}: only the pinned points are held");
+    }
+}
+
+/// A cloth held by two corners that a light free body without weight carries
+/// ([`CarriedPoint`]): the
+/// step solves the body's velocity with the cloth's, so they fall together, the corners
+/// stay on the body, and momentum is exchanged exactly (the body takes the opposite of what
+/// held the corners). The same body pulled one step late (its velocity carried to the
+/// corners, the pull applied after the step) swings further each step: the loop's gain,
+/// the body's inverse mass times the corners' step masses, is past 2.
+#[test]
+fn a_light_body_carrying_a_cloth_is_solved_with_it() {
+    use bevy_point_springs::core::fixtures::cloth::cloth_grid;
+    use bevy_point_springs::core::solver::contact::{CarriedPoint, StepBody};
+    use glam::{DVec3, Mat3};
+    const BODY_MASS: f32 = 0.25;
+    let h = 1.0_f32 / 60.0;
+    let g = STANDARD_GRAVITY;
+    let run = |solved: bool| -> (f32, f32, f32) {
+        let config = SolverConfig {
+            integrator: Integrator::ImplicitEuler,
+            gravity: g,
+            drag: 0.0,
+            cg_tolerance: 1e-6,
+            ..SolverConfig::default()
+        };
+        let mut s = cloth_solver(8, |s| s, config, true);
+        s.set_measure_pins(true);
+        let corners: Vec<usize> = cloth_grid(8)
+            .unwrap()
+            .fixed
+            .iter()
+            .map(|&i| i as usize)
+            .collect();
+        let n = s.len();
+        let mut centre =
+            corners.iter().map(|&i| s.position(i)).sum::<Vec3>() / corners.len() as f32;
+        let offsets: Vec<Vec3> = corners.iter().map(|&i| s.position(i) - centre).collect();
+        let mut velocity = Vec3::ZERO;
+        let mass: f64 = (0..n).map(|i| f64::from(s.mass(i))).sum();
+        let (mut fastest, mut off) = (0.0_f32, 0.0_f32);
+        for _ in 0..120 {
+            // The body feels no gravity of its own (a balloon): only the cloth pulls it.
+            let free = velocity;
+            s.clear_external_forces();
+            let guess = if solved { free } else { velocity };
+            // Setting the corners' velocities is an impulse from the body too.
+            let mut kick = Vec3::ZERO;
+            for (&i, &offset) in corners.iter().zip(&offsets) {
+                let goal = centre + offset + guess * h;
+                let v = (goal - s.position(i)) / h;
+                kick += (v - s.velocity(i)) * s.mass(i);
+                s.set_velocity(i, v).unwrap();
+            }
+            let free = free - kick / BODY_MASS;
+            if solved {
+                let body = s
+                    .external
+                    .add_body(StepBody {
+                        linear: free,
+                        angular: Vec3::ZERO,
+                        guess_linear: guess,
+                        guess_angular: Vec3::ZERO,
+                        inv_mass: Mat3::IDENTITY / BODY_MASS,
+                        inv_inertia: Mat3::ZERO,
+                        key: 1,
+                    })
+                    .unwrap();
+                for (&i, &arm) in corners.iter().zip(&offsets) {
+                    let carried = CarriedPoint {
+                        point: i as u32,
+                        body,
+                        arm,
+                    };
+                    s.external.add_carried(carried).unwrap();
+                }
+            }
+            let report = s.step(h).unwrap();
+            assert!(report.finite);
+            let held: Vec3 = s.pin_impulses().iter().sum();
+            velocity = free - held / BODY_MASS;
+            centre += velocity * h;
+            fastest = fastest.max(velocity.length());
+            for (&i, &offset) in corners.iter().zip(&offsets) {
+                off = off.max(s.position(i).distance(centre + offset));
+            }
+        }
+        let cloth: DVec3 = (0..n)
+            .map(|i| s.velocity(i).as_dvec3() * f64::from(s.mass(i)))
+            .sum();
+        let total = cloth + velocity.as_dvec3() * f64::from(BODY_MASS);
+        let expected = g.as_dvec3() * mass * 2.0;
+        let balance = ((total - expected).length() / expected.length()) as f32;
+        (fastest, off, balance)
+    };
+    let (fastest, off, balance) = run(true);
+    let (late_fastest, late_off, _) = run(false);
+    eprintln!(
+        "solved with the cloth: fastest {fastest:.2} m/s, corners off the body by {off:.2e} m, \
+         momentum off by {balance:.2e}; pulled a step late: fastest {late_fastest:.3e} m/s, \
+         corners off by {late_off:.3e} m"
+    );
+    // They fall together for two seconds, the cloth stretching and swinging below the
+    // body: under 19.6 m/s.
+    assert!(fastest < 19.6, "{fastest}");
+    assert!(balance < 1e-3, "{balance}");
+    assert!(off < 0.1, "{off}");
+    assert!(
+        late_fastest > 10.0 * fastest,
+        "the late pull did not swing: {late_fastest}"
+    );
+}

@@ -30,6 +30,7 @@
 //! ```
 
 pub mod assets;
+pub mod attach;
 pub mod components;
 #[cfg(feature = "rapier")]
 pub mod contact;
@@ -53,6 +54,9 @@ use bevy::ecs::schedule::{InternedScheduleLabel, ScheduleLabel};
 use bevy::prelude::*;
 
 pub use assets::{CloudAsset, CloudLoader, SceneAsset, SceneLoader};
+pub use attach::{
+    AttachPoints, AttachmentError, AttachmentId, AttachmentState, SurfaceAttachments,
+};
 pub use components::{
     DEFAULT_SLEEP_AFTER, DEFAULT_SLEEP_SPEED, DeformableSurface, DenseSurface, PreparationProgress,
     SceneTimeline, SimulationPoints, SleepSettings, StepOnce, SurfaceAnchors, SurfaceForces,
@@ -103,7 +107,7 @@ pub enum PointSpringsSystems {
     /// New surfaces are started and finished preparations collected (in [`PreUpdate`]).
     Prepare,
     /// Force accumulation: grabs ([`GrabMessage`]) and scene timelines move their anchors,
-    /// then each surface's springs (eq 2–3), gravity (eq 4), anchors and pins (eq 5), drag
+    /// attachments ([`SurfaceAttachments`]) their points' velocities, then each surface's springs (eq 2–3), gravity (eq 4), anchors and pins (eq 5), drag
     /// and gas pressure. Put systems that add to [`SurfaceForces`] here.
     Forces,
     /// Euler stepping (explicit, symplectic or implicit, sub-stepped where needed), with
@@ -156,6 +160,7 @@ impl Plugin for PointSpringsPlugin {
                     (
                         model::apply_model_requests,
                         grab::apply_grabs,
+                        attach::hold_attachments,
                         simulate::drive_timelines,
                         simulate::apply_materials,
                         simulate::accumulate_forces,
@@ -165,6 +170,7 @@ impl Plugin for PointSpringsPlugin {
                     (
                         sleep::wake_surfaces,
                         simulate::integrate,
+                        attach::record_pulls,
                         health::watch_health,
                         simulate::plastic_flow,
                         sleep::settle_surfaces,

@@ -42,13 +42,13 @@ pub const PARALLEL_TRANSFER_POINTS: usize = 16_384;
 
 /// Whether a surface steps this tick: ready, and not paused unless asked for one step
 /// ([`StepOnce`]).
-fn running(status: &SurfaceStatus, settings: &SurfaceSettings, step_once: bool) -> bool {
+pub(crate) fn running(status: &SurfaceStatus, settings: &SurfaceSettings, step_once: bool) -> bool {
     status.is_ready() && (!settings.paused || step_once)
 }
 
 /// What [`running`] reads besides the status: the settings, and whether one step was asked
 /// for.
-type Gate = (&'static SurfaceSettings, Has<StepOnce>);
+pub(crate) type Gate = (&'static SurfaceSettings, Has<StepOnce>);
 
 /// What [`accumulate_forces`] reads and changes of a surface.
 type ForceParts = (

@@ -25,7 +25,7 @@
 //! diagonal blocks join the preconditioner. The pressure times the volume's Hessian is
 //! indefinite and left out (Gauss–Newton), so the matrix stays positive definite.
 
-use glam::{DMat3, DVec3};
+use glam::{DMat3, DVec3, Vec3};
 
 use super::parts::{
     CouplingBlock, CurvatureBlock, Curvatures, ExternalForces, HingeBlock, PointState, Springs,
@@ -34,10 +34,12 @@ use super::springs::COINCIDENT_DISTANCE;
 use super::stepper::{Model, Stepper};
 use super::{DampingModel, SolverConfig};
 
+mod carried;
 mod contacts;
 mod sweeps;
 
-use contacts::Contacts;
+use carried::Carried;
+use contacts::{BODY_ROUNDS, Contacts};
 
 /// A symmetric 3×3 matrix.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -51,6 +53,11 @@ pub(crate) struct Sym3 {
 }
 
 impl Sym3 {
+    /// The sum of the diagonal.
+    fn trace(&self) -> f64 {
+        self.xx + self.yy + self.zz
+    }
+
     fn scaled_identity(s: f64) -> Self {
         Self {
             xx: s,
@@ -172,6 +179,9 @@ pub(crate) struct Scratch {
     diag_inv: Vec<Sym3>,
     blocks: Vec<SpringBlock>,
     fixed: Vec<bool>,
+    /// The right-hand side's rows of the fixed points before they were zeroed (what the
+    /// step's forces ask of them; see [`Stepper::pin_impulses`]).
+    pin_rhs: Vec<DVec3>,
     /// The volume's gradient at each point, for the gas's rank-one term.
     gas: Vec<DVec3>,
     /// Each hinge's gradient and scale.
@@ -259,6 +269,7 @@ impl Scratch {
         self.diag.resize(n, Sym3::default());
         self.diag_inv.resize(n, Sym3::default());
         self.fixed.resize(n, false);
+        self.pin_rhs.resize(n, DVec3::ZERO);
         self.blocks.resize(springs, SpringBlock::default());
     }
 }
@@ -304,6 +315,12 @@ impl System<'_> {
 
     /// y = A·p (fixed rows zero; p is zero at fixed points), and returns p·y.
     fn apply(&self, p: &[DVec3], y: &mut [DVec3]) -> f64 {
+        self.apply_rows::<false>(p, y)
+    }
+
+    /// y = A·p, the fixed rows zero unless `FIXED_ROWS` (p is zero at fixed points), and
+    /// returns p·y over the free rows.
+    fn apply_rows<const FIXED_ROWS: bool>(&self, p: &[DVec3], y: &mut [DVec3]) -> f64 {
         let n = p.len();
         let (own, y) = (&self.own[..n], &mut y[..n]);
         for i in 0..n {
@@ -350,7 +367,11 @@ impl System<'_> {
         let mut py = 0.0;
         for i in 0..n {
             if self.fixed[i] {
-                y[i] = DVec3::ZERO;
+                y[i] = if FIXED_ROWS {
+                    y[i] + along * self.gas[i]
+                } else {
+                    DVec3::ZERO
+                };
             } else {
                 if along != 0.0 {
                     y[i] += along * self.gas[i];
@@ -383,19 +404,51 @@ impl Stepper {
             hinge_gradients: &self.hinge_gradients,
             curvature_normals: &self.curvature_normals,
         };
-        let gas_scale = assemble(&mut scratch, forces, points, model, &config, h);
+        let mut gas_scale = assemble(&mut scratch, forces, points, model, &config, h);
         let mut contacts = Contacts::new(external, points, model);
-        let outcome = conjugate_gradient(
+        let mut outcome = conjugate_gradient(
             &config,
             model.springs,
             &mut scratch,
             gas_scale,
             &mut contacts,
         );
+        // Bodies carrying pinned points: rounds of the body's velocity and the surface's.
+        let mut carried = Carried::new(&external.carried, &external.bodies, points);
+        if !carried.is_empty() {
+            let mut held = vec![Vec3::ZERO; n];
+            for _ in 0..BODY_ROUNDS {
+                held.fill(Vec3::ZERO);
+                pin_impulses(model.springs, &mut scratch, gas_scale, &mut held);
+                carried.add_moved(points, model.masses, &mut held);
+                if !carried.step(&scratch, &held, points) {
+                    break;
+                }
+                gas_scale = assemble(&mut scratch, forces, points, model, &config, h);
+                let again = conjugate_gradient(
+                    &config,
+                    model.springs,
+                    &mut scratch,
+                    gas_scale,
+                    &mut contacts,
+                );
+                outcome.iterations += again.iterations;
+                outcome.converged = again.converged;
+            }
+        }
         let held = contacts.slide(&mut scratch, points, &mut self.contact_impulses);
         contacts.remember(&mut scratch);
         if config.damping_model == DampingModel::Axial && !held {
             keep_momenta(&mut scratch, points, model, external, &config, h);
+        }
+        if self.measures_pins() {
+            pin_impulses(
+                model.springs,
+                &mut scratch,
+                gas_scale,
+                &mut self.pin_impulses,
+            );
+            carried.add_moved(points, model.masses, &mut self.pin_impulses);
         }
 
         for (i, dv) in scratch.dv.iter().enumerate() {
@@ -421,8 +474,8 @@ impl Stepper {
 struct Forces<'a> {
     fa: &'a super::parts::Soa3,
     fb: &'a super::parts::Soa3,
-    hinge_gradients: &'a [[glam::Vec3; 4]],
-    curvature_normals: &'a [glam::Vec3],
+    hinge_gradients: &'a [[Vec3; 4]],
+    curvature_normals: &'a [Vec3],
 }
 
 /// Builds the step's system in `s`: the right-hand side h·(f₀ + h·∂f/∂x·v₀) from the forces
@@ -561,6 +614,7 @@ fn assemble(
     }
     for (i, d) in diag.iter().enumerate() {
         if s.fixed[i] {
+            s.pin_rhs[i] = s.rhs[i];
             s.rhs[i] = DVec3::ZERO;
             s.diag_inv[i] = Sym3::default();
             s.dv[i] = DVec3::ZERO;
@@ -687,6 +741,43 @@ fn conjugate_gradient(
             converged: b_norm == 0.0,
         };
     }
+    with_system(springs, s, gas_scale, |system, s| {
+        s.sweeps.invalidate();
+        if contacts.is_empty() {
+            let tolerance = f64::from(config.cg_tolerance) * b_norm;
+            iterate(config, system, s, tolerance, b_norm, false)
+        } else {
+            contacts.solve(config, system, s, b_norm)
+        }
+    })
+}
+
+/// Adds to `out` what held each fixed point in the solved step: its row of A·Δv − b (Δv is
+/// zero there), the impulse m·Δv − h·f_end the point took besides the step's forces.
+fn pin_impulses(springs: &Springs, s: &mut Scratch, gas_scale: f64, out: &mut [Vec3]) {
+    if !s.fixed.iter().any(|&f| f) {
+        return;
+    }
+    with_system(springs, s, gas_scale, |system, s| {
+        let dv = std::mem::take(&mut s.dv);
+        system.apply_rows::<true>(&dv, &mut s.q);
+        s.dv = dv;
+        for (i, j) in out.iter_mut().enumerate() {
+            if system.fixed[i] {
+                *j += (s.q[i] - s.pin_rhs[i]).as_vec3();
+            }
+        }
+    });
+}
+
+/// Runs `f` with the step's matrix assembled in `s` ([`System`]), the parts it borrows taken
+/// out of `s` meanwhile (read them through the system).
+fn with_system<R>(
+    springs: &Springs,
+    s: &mut Scratch,
+    gas_scale: f64,
+    f: impl FnOnce(&System<'_>, &mut Scratch) -> R,
+) -> R {
     let own = std::mem::take(&mut s.own);
     let blocks = std::mem::take(&mut s.blocks);
     let fixed = std::mem::take(&mut s.fixed);
@@ -710,13 +801,7 @@ fn conjugate_gradient(
         curvatures: &springs.curvatures,
         curvature_blocks: &curvature_blocks,
     };
-    s.sweeps.invalidate();
-    let outcome = if contacts.is_empty() {
-        let tolerance = f64::from(config.cg_tolerance) * b_norm;
-        iterate(config, &system, s, tolerance, b_norm, false)
-    } else {
-        contacts.solve(config, &system, s, b_norm)
-    };
+    let out = f(&system, s);
     s.own = own;
     s.blocks = blocks;
     s.fixed = fixed;
@@ -724,7 +809,7 @@ fn conjugate_gradient(
     s.hinges = hinges;
     s.couplings = couplings;
     s.curvatures = curvature_blocks;
-    outcome
+    out
 }
 
 /// Iterations of block-Jacobi conjugate gradient before a solve restarts with symmetric

@@ -442,6 +442,18 @@ impl Solver {
         self.stepper.contact_impulses()
     }
 
+    /// Whether each step measures what holds the pinned points
+    /// ([`Stepper::set_measure_pins`]).
+    pub fn set_measure_pins(&mut self, on: bool) {
+        self.stepper.set_measure_pins(on);
+    }
+
+    /// The impulse that held each pinned point in the last step (N·s; see
+    /// [`Stepper::pin_impulses`]).
+    pub fn pin_impulses(&self) -> &[Vec3] {
+        self.stepper.pin_impulses()
+    }
+
     /// Adds an anchor spring (eq 5).
     pub fn add_anchor(&mut self, anchor: Anchor) -> Result<AnchorId, SolverError> {
         self.anchors.add(anchor, self.points.len())

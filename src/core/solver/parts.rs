@@ -29,7 +29,7 @@ pub(crate) use hinges::HingeBlock;
 pub use hinges::{DEGENERATE_HEIGHT, HingeGeometry, HingeSpec, Hinges, angle_difference};
 pub use pressure::Pressure;
 
-use super::contact::{StepBody, StepContact};
+use super::contact::{CarriedPoint, StepBody, StepContact};
 use super::springs::SpringLayout;
 use super::{Anchor, AnchorId, Plasticity, STATE_LIMIT, SolverError, SpringSpec};
 
@@ -639,8 +639,10 @@ pub struct ExternalForces {
     pub(crate) any: bool,
     /// Contacts the step solves with the springs.
     pub(crate) contacts: Vec<StepContact>,
-    /// The bodies the contacts' `body` indices name.
+    /// The bodies the contacts' and carried points' `body` indices name.
     pub(crate) bodies: Vec<StepBody>,
+    /// Pinned points carried by bodies the step solves with the surface.
+    pub(crate) carried: Vec<CarriedPoint>,
 }
 
 impl ExternalForces {
@@ -651,6 +653,7 @@ impl ExternalForces {
             any: false,
             contacts: Vec::new(),
             bodies: Vec::new(),
+            carried: Vec::new(),
         }
     }
 
@@ -752,6 +755,29 @@ impl ExternalForces {
         &self.bodies
     }
 
+    /// Adds a pinned point carried by one of the bodies ([`CarriedPoint`]): an implicit
+    /// step (conjugate gradient) solves the body's velocity with the surface's and moves
+    /// the point with it. Refused when the point or the body is out of range or the arm is
+    /// not finite.
+    pub fn add_carried(&mut self, carried: CarriedPoint) -> Result<(), SolverError> {
+        let point = carried.point as usize;
+        check_index(point, self.len())?;
+        check_vector(point, carried.arm, "carried point's arm")?;
+        if carried.body as usize >= self.bodies.len() {
+            return Err(SolverError::InvalidContact {
+                point,
+                what: "body index",
+            });
+        }
+        self.carried.push(carried);
+        Ok(())
+    }
+
+    /// The carried points, in the order they were added.
+    pub fn carried(&self) -> &[CarriedPoint] {
+        &self.carried
+    }
+
     /// Sets every force to zero and drops the contacts and their bodies.
     pub fn clear(&mut self) {
         if self.any {
@@ -760,12 +786,14 @@ impl ExternalForces {
         }
         self.contacts.clear();
         self.bodies.clear();
+        self.carried.clear();
     }
 
     /// Whether every force is zero and no contact is waiting (cheap when none was set
     /// since the last clear).
     pub fn is_zero(&self) -> bool {
         self.contacts.is_empty()
+            && self.carried.is_empty()
             && (!self.any || (0..self.len()).all(|i| self.f.get(i) == Vec3::ZERO))
     }
 }

@@ -324,6 +324,8 @@ impl Stepper {
                 s.offset[i as usize] += dx;
             }
         }
+        // What held the fixed points: −h·f at the last iterate.
+        self.add_pin_forces(model.masses, h);
         // The new state: v = (x − x₀)/h; fixed points keep their velocity.
         for &i in &s.free {
             let i = i as usize;

@@ -84,6 +84,10 @@ pub struct Stepper {
     rest_diagonal: f32,
     /// The impulse each contact handed to the last step gave its point (N·s).
     pub(crate) contact_impulses: Vec<Vec3>,
+    /// Whether steps measure what holds their pinned points ([`Stepper::pin_impulses`]).
+    measure_pins: bool,
+    /// The impulse that held each pinned point during the last step (N·s; zero where free).
+    pub(crate) pin_impulses: Vec<Vec3>,
 }
 
 impl Stepper {
@@ -469,6 +473,10 @@ impl Stepper {
         self.contact_impulses.clear();
         self.contact_impulses
             .resize(external.contacts.len(), Vec3::ZERO);
+        self.pin_impulses.clear();
+        if self.measure_pins {
+            self.pin_impulses.resize(points.len(), Vec3::ZERO);
+        }
         let h = dt / substeps as f32;
         let speed = self.runaway_speed();
         let mut report = StepReport {
@@ -487,10 +495,12 @@ impl Stepper {
             self.add_external(external);
             insane = match integrator {
                 Integrator::ExplicitEuler => {
+                    self.add_pin_forces(model.masses, h);
                     let insane = self.integrate::<false>(points, model.masses, h, speed);
                     self.project_contacts(points, model, external, h, insane)
                 }
                 Integrator::SymplecticEuler => {
+                    self.add_pin_forces(model.masses, h);
                     let insane = self.integrate::<true>(points, model.masses, h, speed);
                     self.project_contacts(points, model, external, h, insane)
                 }
@@ -533,8 +543,9 @@ impl Stepper {
                 points.v.copy_from(v);
             }
             self.implicit.reset_warm_start();
-            // The step did not happen: neither did its contacts.
+            // The step did not happen: neither did its contacts, nor its pins' pulls.
             self.contact_impulses.fill(Vec3::ZERO);
+            self.pin_impulses.fill(Vec3::ZERO);
             report.recovered = true;
             report.finite = true;
         }
@@ -574,6 +585,45 @@ impl Stepper {
     /// Forgets the last step's contact impulses (once a caller has read them).
     pub fn clear_contact_impulses(&mut self) {
         self.contact_impulses.clear();
+    }
+
+    /// Whether each step measures what holds its pinned points ([`Stepper::pin_impulses`]).
+    /// Off by default: an implicit step pays one more product with its matrix for it.
+    pub fn set_measure_pins(&mut self, on: bool) {
+        self.measure_pins = on;
+        if !on {
+            self.pin_impulses.clear();
+        }
+    }
+
+    /// Whether steps measure what holds their pinned points.
+    pub fn measures_pins(&self) -> bool {
+        self.measure_pins
+    }
+
+    /// The impulse (N·s, the surface's coordinates) that whatever holds each pinned point
+    /// gave it during the last step: what it took to keep the point on its prescribed path
+    /// against the springs, gravity and every other force of the step (its opposite is
+    /// what the surface pulled on the holder with). Zero at free points; empty unless
+    /// [`Stepper::set_measure_pins`] is on, and zero when the guard undid the step. With
+    /// implicit Euler solved by conjugate gradient it is the pinned rows of A·Δv − b, so
+    /// that the surface's momentum changes by exactly these impulses and the external
+    /// forces' (to the solve's tolerance); with an explicit integrator −h·f at each
+    /// sub-step; with local/global iterations −h·f at the last iterate.
+    pub fn pin_impulses(&self) -> &[Vec3] {
+        &self.pin_impulses
+    }
+
+    /// Subtracts h·f from each pinned point's impulse, `f` the forces in `fa` and `fb`.
+    pub(crate) fn add_pin_forces(&mut self, masses: &Masses, h: f32) {
+        if !self.measure_pins {
+            return;
+        }
+        for (i, j) in self.pin_impulses.iter_mut().enumerate() {
+            if masses.inv_mass[i] == 0.0 {
+                *j -= (self.fa.get(i) + self.fb.get(i)) * h;
+            }
+        }
     }
 
     /// One explicit step of length `h` from the forces in `fa` and `fb`: symplectic Euler

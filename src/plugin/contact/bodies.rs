@@ -144,7 +144,7 @@ pub(super) struct Held {
 
 /// A rapier body as contacts see it: its velocity at the end of the tick without contacts
 /// (gravity included unless it sleeps), and its inverse mass and inertia if dynamic.
-fn body_state(body: &RigidBody, gravity: Vec3, dt: f32) -> BodyState {
+pub(super) fn body_state(body: &RigidBody, gravity: Vec3, dt: f32) -> BodyState {
     let center = body.center_of_mass();
     if !body.is_dynamic() {
         return BodyState::immovable(body.linvel(), body.angvel(), center);

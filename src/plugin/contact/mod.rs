@@ -38,6 +38,10 @@
 //!    estimated impulses go into the points' [`SurfaceForces`] instead and their opposites
 //!    to the bodies, so rapier's step and the surface's step both see them in this tick.
 //!
+//! The same plugin makes attachments ([`SurfaceAttachments`](super::SurfaceAttachments))
+//! two-way: a target rapier moves by velocity carries its points along over the tick, and a
+//! dynamic target takes the surface's pull at its attached points before rapier steps.
+//!
 //! The plugin keeps rapier's `TimestepMode::Fixed` step equal to the tick, so that
 //! both step the same time. A surface's [`SurfaceContacts`] reports what touched it.
 //!
@@ -50,6 +54,7 @@
 //! [`CollisionGroups`]: bevy_rapier3d::prelude::CollisionGroups
 //! [`SurfaceForces`]: super::SurfaceForces
 
+mod attached;
 mod bodies;
 mod colliders;
 mod surface;
@@ -115,6 +120,12 @@ impl Plugin for SurfaceContactPlugin {
                     system::record_step_contacts
                         .after(PointSpringsSystems::Integrate)
                         .before(PointSpringsSystems::Transfer)
+                        .before(PhysicsSet::StepSimulation),
+                    attached::predict_attached_bodies
+                        .after(PhysicsSet::SyncBackend)
+                        .before(crate::plugin::attach::hold_attachments),
+                    attached::pull_attached_bodies
+                        .after(PointSpringsSystems::Integrate)
                         .before(PhysicsSet::StepSimulation),
                 ),
             );

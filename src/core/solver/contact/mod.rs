@@ -196,6 +196,21 @@ pub struct StepContact {
     pub arm: Vec3,
 }
 
+/// A pinned simulation point carried by a body the step solves with the surface
+/// ([`StepBody`]): an attachment to a dynamic body. The point's velocity at the start of the
+/// step is the body's guess carried to it; each round of the step moves it with the body's
+/// velocity (v + ω × arm), and the body takes the opposite of what held the point
+/// ([`Stepper::pin_impulses`](crate::core::solver::Stepper::pin_impulses)).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CarriedPoint {
+    /// The simulation point's index (a pinned one; a free point is left out).
+    pub point: u32,
+    /// The body carrying it, as its index among the step's bodies.
+    pub body: u32,
+    /// Where the point is, from the body's centre of mass.
+    pub arm: Vec3,
+}
+
 /// A body the surface moves and that moves the surface, solved with it within the step, in
 /// the surface's own coordinates: its velocity at the end of the step is found with the
 /// surface's, by a few rounds of (1) the surface solved with its points held to the body's

@@ -14,11 +14,11 @@ use crate::core::solver::stepper::Model;
 const CONTACT_PASSES: u32 = 4;
 
 /// Most rounds of solving the moving bodies' velocities with the surface ([`StepBody`]).
-const BODY_ROUNDS: u32 = 3;
+pub(super) const BODY_ROUNDS: u32 = 3;
 
 /// A moving body whose velocity is within this (m/s, rad/s) of what the surface's pushes
 /// give it needs no further round.
-const BODY_SPEED_SLACK: f64 = 1e-3;
+pub(super) const BODY_SPEED_SLACK: f64 = 1e-3;
 
 /// The contacts of one implicit step ([`StepContact`]), one per point: while a contact holds
 /// its point, the point's velocity along the normal is prescribed (the least the contact
@@ -50,14 +50,14 @@ pub(super) struct Contacts<'a> {
 /// What one round of a moving body left for the next: how the pushes on the surface change
 /// with the body's velocity, as estimated so far, and the velocity and pushes of the round.
 #[derive(Debug, Clone, Copy)]
-struct Secant {
-    resist: (DMat3, DMat3),
-    shift: (DVec3, DVec3),
-    impulse: (DVec3, DVec3),
+pub(super) struct Secant {
+    pub(super) resist: (DMat3, DMat3),
+    pub(super) shift: (DVec3, DVec3),
+    pub(super) impulse: (DVec3, DVec3),
 }
 
 /// Broyden's update of `c` (how y changes with x) from a step `dx` that changed y by `dy`.
-fn broyden(c: DMat3, dx: DVec3, dy: DVec3) -> DMat3 {
+pub(super) fn broyden(c: DMat3, dx: DVec3, dy: DVec3) -> DMat3 {
     let length = dx.length_squared();
     if length > 0.0 && length.is_finite() {
         c + outer(dy - c * dx, dx) / length
