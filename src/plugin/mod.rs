@@ -36,6 +36,7 @@ pub mod components;
 pub mod contact;
 pub mod grab;
 pub mod health;
+pub mod meet;
 pub mod model;
 #[cfg(feature = "egui")]
 pub mod panel;
@@ -70,6 +71,7 @@ pub use contact::{
 };
 pub use grab::{GrabMessage, GrabSettings, Grabs};
 pub use health::{STABLE_STEPS_TO_RECOVER, SurfaceHealth, SurfaceUnstable};
+pub use meet::SurfaceMeeting;
 pub use model::{ModelMessage, ModelOutcome};
 pub use prepare::{PreparationPool, PrepareAgain, PrepareAgainFailed};
 pub use save::{
@@ -132,6 +134,7 @@ impl Plugin for PointSpringsPlugin {
             .register_type::<SurfaceHealth>()
             .register_type::<GrabSettings>()
             .register_type::<SaveName>()
+            .register_type::<SurfaceMeeting>()
             .add_message::<GrabMessage>()
             .add_message::<SaveGameMessage>()
             .add_message::<SaveGameOutcome>()
@@ -164,6 +167,7 @@ impl Plugin for PointSpringsPlugin {
                         simulate::drive_timelines,
                         simulate::apply_materials,
                         simulate::accumulate_forces,
+                        meet::meet_surfaces,
                     )
                         .chain()
                         .in_set(PointSpringsSystems::Forces),

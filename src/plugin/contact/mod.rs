@@ -71,10 +71,11 @@ use bevy_rapier3d::rapier::dynamics::RigidBodyHandle;
 
 use crate::core::network::SpringNetwork;
 use crate::core::solver::contact::{
-    ContactParams, DEFAULT_DEPTH_RECOVERY, DEFAULT_FRICTION, DEFAULT_RADIUS_SCALE, point_radii,
+    ContactParams, DEFAULT_DEPTH_RECOVERY, DEFAULT_FRICTION, DEFAULT_RADIUS_SCALE,
 };
 
 use super::PointSpringsSystems;
+use super::meet::PointRadii;
 
 pub use system::surface_contacts;
 
@@ -208,10 +209,7 @@ pub struct SurfaceContacts {
     pub total_impulse: Vec3,
     /// The points' sphere radii, in the surface's coordinates.
     #[reflect(ignore)]
-    radii: Vec<f32>,
-    /// The network and scale the radii were computed for.
-    #[reflect(ignore)]
-    radii_of: Option<(Arc<SpringNetwork>, u32)>,
+    radii: PointRadii,
     /// For each contact handed to the step this tick: its dynamic body, if it has one, and
     /// where it touches it (world coordinates).
     #[reflect(ignore)]
@@ -224,17 +222,13 @@ pub struct SurfaceContacts {
 impl SurfaceContacts {
     /// The simulation points' sphere radii, in the surface's coordinates.
     pub fn radii(&self) -> &[f32] {
-        &self.radii
+        self.radii.get()
     }
 
     /// Recomputes the radii when the network or the scale changed (a surface prepared
     /// again, a setting changed).
     fn refresh_radii(&mut self, network: &Arc<SpringNetwork>, scale: f32) {
-        let current = matches!(&self.radii_of,
-            Some((n, s)) if Arc::ptr_eq(n, network) && *s == scale.to_bits());
-        if !current {
-            self.radii = point_radii(network, scale);
-            self.radii_of = Some((Arc::clone(network), scale.to_bits()));
+        if self.radii.refresh(network, scale) {
             self.total_impulse = Vec3::ZERO;
         }
     }

@@ -114,14 +114,14 @@ fn contact_surface(
         None => inserted.insert(SurfaceContacts::default()),
     };
     report.start_tick(&network.0, contact.radius_scale);
-    if contact.enabled && points.len() == report.radii.len() {
+    if contact.enabled && points.len() == report.radii().len() {
         let frame = SurfaceFrame::new(place, stepper.config().gravity, rigid.dt);
         let surface = SurfaceView {
             points,
             masses,
             springs,
             stepper,
-            radii: &report.radii,
+            radii: report.radii.get(),
             frame,
         };
         let groups = groups.map_or(InteractionGroups::all(), |g| (*g).into());
