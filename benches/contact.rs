@@ -3,7 +3,12 @@
 //! * `playground`: the `playground` example's sphere (338 simulation points) and hat (300)
 //!   with 12 balls resting on them and on the floor;
 //! * `sheet+50`: a 10 m sheet of 10^4 simulation points, edges held, 50 balls resting on it;
-//! * `sheet+far`: the same sheet with the 50 balls 100 m away (near no surface).
+//! * `sheet+far`: the same sheet with the 50 balls 100 m away (near no surface);
+//! * `spheres 100 m apart`: two of the playground's spheres floating 100 m apart, with and
+//!   without [`SurfaceMeeting`] (what surfaces that meet nothing pay for meeting);
+//! * `hat on sphere`: the paper's hat resting on a sphere of gas, with and without
+//!   [`SurfaceMeeting`] (without it the hat falls through, so compare the whole ticks only
+//!   as the cost of the meeting's estimate).
 //!
 //! Each scene settles for [`SETTLE_TICKS`], then [`MEASURED_TICKS`] ticks are timed: the
 //! contact system alone (its own clock, [`ContactDiagnostics`]) and the whole tick
@@ -13,7 +18,8 @@
 //! Each scene runs twice: contacts solved in the surfaces' steps ([`ContactSolve::InStep`],
 //! the default) and estimated before them.
 //!
-//! `cargo bench --features rapier --bench contact`
+//! `cargo bench --features rapier --bench contact [-- NAME]` (only the scenes whose name has
+//! NAME in it).
 
 use std::path::Path;
 use std::time::{Duration, Instant};
@@ -45,11 +51,128 @@ fn main() {
         "| scene | simulation points | balls | colliders | points touching | contacts µs/tick | whole tick µs | contacts share |"
     );
     println!("|---|---|---|---|---|---|---|---|");
+    // Scene names asked for after `--` (cargo passes `--bench` too).
+    let asked: Vec<String> = std::env::args()
+        .skip(1)
+        .filter(|a| !a.starts_with("--"))
+        .collect();
+    let wanted = |name: &str| asked.is_empty() || asked.iter().any(|a| name.contains(a));
     for solve in [ContactSolve::InStep, ContactSolve::Estimated] {
-        playground(solve);
-        sheet(false, solve);
-        sheet(true, solve);
+        if wanted("playground") {
+            playground(solve);
+        }
+        if wanted("sheet+50") {
+            sheet(false, solve);
+        }
+        if wanted("sheet+far") {
+            sheet(true, solve);
+        }
     }
+    for meet in [false, true] {
+        if wanted("spheres 100 m apart") {
+            spheres_apart(meet);
+        }
+        if wanted("hat on sphere") {
+            hat_on_sphere(meet);
+        }
+    }
+}
+
+/// The playground's sphere: its cloud and settings (gas inside), floating when `gravity`
+/// is zero.
+fn playground_sphere(gravity: Vec3) -> (bevy_point_springs::core::PointCloud, SurfaceConfig) {
+    let assets = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets");
+    let cloud = read_cloud(&assets.join("sphere3203.ply"), None).unwrap();
+    let config = SurfaceConfig {
+        simplify: SimplifyConfig::target(338),
+        material: SpringMaterial {
+            stretch_stiffness: 60.0,
+            bend_stiffness: 60.0,
+            stretch_damping: 0.6,
+            bend_damping: 0.3,
+            ..default()
+        },
+        pressure: Some(1000.0),
+        solver: SolverConfig {
+            integrator: Integrator::ImplicitEuler,
+            drag: 2.0,
+            gravity,
+            ..default()
+        },
+        ..default()
+    };
+    (cloud, config)
+}
+
+/// Whether the scene's surfaces meet each other, and its name in the table.
+fn meeting(meet: bool) -> (Option<SurfaceMeeting>, &'static str) {
+    if meet {
+        (Some(SurfaceMeeting::default()), "meeting")
+    } else {
+        (None, "not meeting")
+    }
+}
+
+/// Two of the playground's spheres floating 100 m apart.
+fn spheres_apart(meet: bool) {
+    let (meeting, name) = meeting(meet);
+    let mut app = create_app();
+    for x in [0.0, 100.0] {
+        let (cloud, config) = playground_sphere(Vec3::ZERO);
+        let mut e = app.world_mut().spawn((
+            DeformableSurface::cloud(cloud, config),
+            Transform::from_xyz(x, 1.0, 0.0),
+            awake(),
+        ));
+        if let Some(m) = meeting.clone() {
+            e.insert(m);
+        }
+    }
+    settle(&mut app);
+    measure(&mut app, &format!("spheres 100 m apart, {name}"), 0);
+}
+
+/// The paper's hat (turned over, 300 simulation points) dropped onto the playground's
+/// sphere (its lower half held).
+fn hat_on_sphere(meet: bool) {
+    let (meeting, name) = meeting(meet);
+    let mut app = create_app();
+    let (cloud, config) = playground_sphere(Vec3::ZERO);
+    let sphere = app
+        .world_mut()
+        .spawn((
+            DeformableSurface::cloud(cloud, config),
+            Transform::from_xyz(0.0, 1.0, 0.0),
+            awake(),
+        ))
+        .id();
+    let turn = Quat::from_rotation_x(std::f32::consts::PI);
+    let hat_config = SurfaceConfig {
+        simplify: SimplifyConfig::target(300),
+        solver: SolverConfig {
+            integrator: Integrator::ImplicitEuler,
+            drag: 1.0,
+            gravity: turn.inverse() * Vec3::new(0.0, -9.81, 0.0),
+            ..default()
+        },
+        ..default()
+    };
+    let hat = app
+        .world_mut()
+        .spawn((
+            DeformableSurface::cloud(shapes::hat(3000, 1.0, -0.2), hat_config),
+            Transform::from_xyz(0.0, 1.5, 0.0).with_rotation(turn),
+            awake(),
+        ))
+        .id();
+    if let Some(m) = meeting {
+        for e in [sphere, hat] {
+            app.world_mut().entity_mut(e).insert(m.clone());
+        }
+    }
+    settle(&mut app);
+    pin(&mut app, sphere, |p| p.y < 0.0);
+    measure(&mut app, &format!("hat on sphere, {name}"), 0);
 }
 
 /// How the surfaces' contacts reach their steps, and its name in the table.
