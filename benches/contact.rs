@@ -1,7 +1,8 @@
 //! What contacts between rapier bodies and surfaces cost per tick, headless, in three scenes:
 //!
-//! * `playground`: the `playground` example's sphere (338 simulation points) and hat (300)
-//!   with 12 balls resting on them and on the floor;
+//! * `playground`: a sphere (338 simulation points) and the hat (300) held by its rim, side
+//!   by side, as the `playground` example had them until 2026-12-05 (it now drops the hat
+//!   on the sphere: `hat on sphere` below), with 12 balls resting on them and on the floor;
 //! * `sheet+50`: a 10 m sheet of 10^4 simulation points, edges held, 50 balls resting on it;
 //! * `sheet+far`: the same sheet with the 50 balls 100 m away (near no surface);
 //! * `spheres 100 m apart`: two of the playground's spheres floating 100 m apart, with and

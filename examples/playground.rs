@@ -1,5 +1,6 @@
-//! Rigid bodies and deformable surfaces touching: a sphere and the hat on a floor, balls
-//! dropped on them every second and a half, and the mouse to poke and drag.
+//! Rigid bodies and deformable surfaces touching, and surfaces touching each other: the hat
+//! dropped on a sphere on a floor, balls dropped on them every second and a half, and the
+//! mouse to poke and drag.
 //!
 //! ```sh
 //! cargo run --release --features egui,rapier --example playground
@@ -7,8 +8,10 @@
 //! ```
 //!
 //! The sphere (3203 points, 338 simulation points, gas inside) sits on the floor under
-//! gravity; the hat's cloud (the cap of a sphere, 300 simulation points) is held by its rim
-//! in a ring above the floor. Both are [`DeformableSurface`]s; the floor and the balls are bevy_rapier3d bodies.
+//! gravity; the hat's cloud (the cap of a sphere, 300 simulation points), turned over, is
+//! dropped onto it from a metre above and rests on it like a cap on a head: both carry
+//! [`SurfaceMeeting`], so their points push each other apart. Both are
+//! [`DeformableSurface`]s; the floor and the balls are bevy_rapier3d bodies.
 //! [`SurfaceContactPlugin`] makes every simulation point a small sphere that rapier's
 //! colliders push, and pushes them back. Left-drag pokes and pulls a surface, right-drag
 //! orbits, the wheel zooms, G shows the simulation points and springs, Space pauses. Built
@@ -19,10 +22,9 @@ mod utils;
 use bevy::prelude::*;
 use bevy_point_springs::core::pipeline::SurfaceConfig;
 use bevy_point_springs::core::simplify::SimplifyConfig;
-use bevy_point_springs::core::solver::hold_still;
 use bevy_point_springs::prelude::*;
 use bevy_rapier3d::prelude::*;
-use utils::{DemoArgs, DemoPlugin, prop_material, spawn_camera_and_light};
+use utils::{DemoArgs, DemoPlugin, spawn_camera_and_light};
 
 /// Ticks between two balls (1.5 s at 60 Hz).
 const BALL_INTERVAL: u32 = 90;
@@ -40,15 +42,15 @@ const BALL_DENSITY: f32 = 40.0;
 const SPHERE_DENSITY: f32 = 1.0;
 
 /// Height the balls are dropped from.
-const DROP_HEIGHT: f32 = 2.6;
+const DROP_HEIGHT: f32 = 3.4;
 
-/// Where the sphere and the hat stand.
-const SPHERE_AT: Vec3 = Vec3::new(-1.3, 1.0, 0.0);
-const HAT_AT: Vec3 = Vec3::new(1.3, 1.6, 0.0);
+/// Where the sphere stands, and how high above it the hat starts (the hat's inside is the
+/// sphere's size: it lands this far below).
+const SPHERE_AT: Vec3 = Vec3::new(0.0, 1.0, 0.0);
+const HAT_DROP: f32 = 1.0;
 
-/// The hat's simulation points at or above this height (in its own coordinates) are held
-/// by the ring.
-const HAT_RIM: f32 = -0.3;
+/// Air drag on the hat (per second), which steadies it as it lands.
+const HAT_DRAG: f32 = 1.0;
 
 fn main() -> AppExit {
     App::new()
@@ -62,14 +64,9 @@ fn main() -> AppExit {
             SurfaceContactPlugin::default(),
         ))
         .add_systems(Startup, setup)
-        .add_systems(Update, hold_the_hat_rim)
         .add_systems(FixedUpdate, drop_balls)
         .run()
 }
-
-/// Marks the hat.
-#[derive(Component)]
-struct Hat;
 
 /// Marks a ball, with the tick it was dropped at.
 #[derive(Component)]
@@ -111,29 +108,30 @@ fn setup(
     commands.spawn((
         Name::new("sphere"),
         DeformableSurface::cloud_asset(assets.load("sphere3203.ply"), sphere),
+        SurfaceMeeting::default(),
         SurfelRender::default(),
         Transform::from_translation(SPHERE_AT),
     ));
+    // The hat turned over, rim down; its gravity is in its own coordinates, so it turns too.
+    let turn = Quat::from_rotation_x(std::f32::consts::PI);
     let hat = SurfaceConfig {
         simplify: SimplifyConfig::target(300),
-        solver,
+        solver: SolverConfig {
+            drag: HAT_DRAG,
+            gravity: turn.inverse() * solver.gravity,
+            ..solver
+        },
         ..default()
     };
     commands.spawn((
         Name::new("hat"),
-        Hat,
         DeformableSurface::cloud_asset(assets.load("hat3000.ply"), hat),
+        SurfaceMeeting::default(),
         SurfelRender {
             color: Color::srgb(0.55, 0.42, 0.75),
             ..default()
         },
-        Transform::from_translation(HAT_AT),
-    ));
-    // The ring that holds the hat's rim.
-    commands.spawn((
-        Mesh3d(meshes.add(Torus::new(0.93, 1.03))),
-        MeshMaterial3d(materials.add(prop_material())),
-        Transform::from_translation(HAT_AT + Vec3::Y * -0.22),
+        Transform::from_translation(SPHERE_AT + Vec3::Y * HAT_DROP).with_rotation(turn),
     ));
     // The floor: a rapier collider and its slab.
     commands.spawn((
@@ -157,24 +155,8 @@ fn setup(
     spawn_camera_and_light(&mut commands, Vec3::new(0.0, 0.8, 0.0), 6.0, 0.0, 0.6);
 }
 
-/// Hats whose network is new (just prepared).
-type NewHats = (With<Hat>, Changed<SurfaceNetwork>);
-
-/// Pins the hat's rim where it is, at rest, once it is prepared (and again when it is
-/// prepared anew).
-fn hold_the_hat_rim(
-    mut hats: Query<(&SurfaceNetwork, &mut SurfaceMasses, &mut SimulationPoints), NewHats>,
-) {
-    for (network, mut masses, mut points) in &mut hats {
-        let rim = |i: usize| network.positions[i].y >= HAT_RIM;
-        if let Err(e) = hold_still(&mut masses, &mut points, rim) {
-            error!("the hat's rim is not held: {e}");
-        }
-    }
-}
-
-/// Every [`BALL_INTERVAL`] ticks while the surfaces run, a ball over the sphere or the hat
-/// in turn, a little off their middle; the oldest goes when there are too many.
+/// Every [`BALL_INTERVAL`] ticks while the surfaces run, a ball over the hat on the sphere,
+/// its middle or a little off it; the oldest goes when there are too many.
 fn drop_balls(
     mut commands: Commands,
     look: Res<BallLook>,
@@ -190,18 +172,14 @@ fn drop_balls(
         return;
     }
     *tick += 1;
-    if *tick % BALL_INTERVAL != 1 {
+    // The first once the hat has landed.
+    if !(*tick).is_multiple_of(BALL_INTERVAL) {
         return;
     }
     let n = *tick / BALL_INTERVAL;
-    let over = if n.is_multiple_of(2) {
-        HAT_AT
-    } else {
-        SPHERE_AT
-    };
-    // A small walk around the middle, the same on every run.
+    // A walk around the top of the hat, the same on every run.
     let angle = n as f32 * 2.4;
-    let offset = Vec3::new(angle.cos(), 0.0, angle.sin()) * 0.12 * (n % 3) as f32;
+    let offset = Vec3::new(angle.cos(), 0.0, angle.sin()) * (0.15 + 0.25 * (n % 3) as f32);
     commands.spawn((
         Ball(*tick),
         RigidBody::Dynamic,
@@ -209,7 +187,7 @@ fn drop_balls(
         ColliderMassProperties::Density(BALL_DENSITY),
         Mesh3d(look.mesh.clone()),
         MeshMaterial3d(look.material.clone()),
-        Transform::from_translation(Vec3::new(over.x, DROP_HEIGHT, over.z) + offset),
+        Transform::from_translation(Vec3::new(SPHERE_AT.x, DROP_HEIGHT, SPHERE_AT.z) + offset),
     ));
     let mut all: Vec<(Entity, u32)> = balls.iter().map(|(e, b)| (e, b.0)).collect();
     if all.len() >= MAX_BALLS {

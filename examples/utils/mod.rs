@@ -59,6 +59,8 @@ pub struct DemoArgs {
     pub size: Option<(u32, u32)>,
     /// Start with the simulation points and springs shown.
     pub gizmos: bool,
+    /// Leave the live panel out (a clean picture of the scene).
+    pub no_panel: bool,
 }
 
 impl DemoArgs {
@@ -71,6 +73,7 @@ impl DemoArgs {
                 "--screenshot" => args.screenshot = it.next().map(PathBuf::from),
                 "--frames" => args.frames = it.next().and_then(|n| n.parse().ok()),
                 "--gizmos" => args.gizmos = true,
+                "--no-panel" => args.no_panel = true,
                 "--size" => {
                     args.size = it.next().and_then(|s| {
                         let (w, h) = s.split_once('x')?;
@@ -79,7 +82,7 @@ impl DemoArgs {
                 }
                 "-h" | "--help" => {
                     println!(
-                        "options: [FILE] [--screenshot PATH.png] [--frames N] [--size WxH] [--gizmos]"
+                        "options: [FILE] [--screenshot PATH.png] [--frames N] [--size WxH] [--gizmos] [--no-panel]"
                     );
                     println!(
                         "mouse: left-drag pokes and pulls a surface, right-drag orbits, wheel zooms"
@@ -139,7 +142,7 @@ impl Plugin for DemoPlugin {
             Update,
             (orbit_camera, keys, show_status, screenshot_and_exit),
         );
-        if self.panel {
+        if self.panel && !self.args.no_panel {
             add_panel(app);
         }
         if self.args.gizmos {
