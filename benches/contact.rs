@@ -5,11 +5,17 @@
 //!   on the sphere: `hat on sphere` below), with 12 balls resting on them and on the floor;
 //! * `sheet+50`: a 10 m sheet of 10^4 simulation points, edges held, 50 balls resting on it;
 //! * `sheet+far`: the same sheet with the 50 balls 100 m away (near no surface);
-//! * `spheres 100 m apart`: two of the playground's spheres floating 100 m apart, with and
-//!   without [`SurfaceMeeting`] (what surfaces that meet nothing pay for meeting);
-//! * `hat on sphere`: the paper's hat resting on a sphere of gas, with and without
-//!   [`SurfaceMeeting`] (without it the hat falls through, so compare the whole ticks only
-//!   as the cost of the meeting's estimate).
+//! * `spheres 100 m apart`: two of the playground's spheres floating 100 m apart, without
+//!   [`SurfaceMeeting`], with it but no self-contact, and with both (what surfaces that
+//!   meet nothing pay for meeting);
+//! * `hat on sphere`: the paper's hat resting on a sphere of gas (the `playground`'s
+//!   surfaces), the same three ways (without meeting the hat falls through, so compare the
+//!   whole ticks only as the cost of the meeting);
+//! * `cloth on ball`: a 2 m cloth draped over a ball of gas, its sides folded onto
+//!   themselves (the self-contact test's scene), the same three ways;
+//!
+//! and the last three once more with the meeting's contacts only estimated
+//! (`SurfaceMeeting::in_step` off).
 //!
 //! Each scene settles for [`SETTLE_TICKS`], then [`MEASURED_TICKS`] ticks are timed: the
 //! contact system alone (its own clock, [`ContactDiagnostics`]) and the whole tick
@@ -30,6 +36,7 @@ use bevy_point_springs::core::cloud::io::read_cloud;
 use bevy_point_springs::core::cloud::shapes;
 use bevy_point_springs::core::pipeline::SurfaceConfig;
 use bevy_point_springs::core::simplify::SimplifyConfig;
+use bevy_point_springs::core::solver::{BendingModel, MaterialUnits, SpringMaterial};
 use bevy_point_springs::plugin::SleepSettings;
 use bevy_point_springs::prelude::*;
 use bevy_rapier3d::prelude::*;
@@ -49,9 +56,9 @@ const SHEET_BALL_RADIUS: f32 = 0.3;
 
 fn main() {
     println!(
-        "| scene | simulation points | balls | colliders | points touching | contacts µs/tick | whole tick µs | contacts share |"
+        "| scene | simulation points | balls | colliders | points touching | touching surfaces / themselves | contacts µs/tick | whole tick µs | contacts share |"
     );
-    println!("|---|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|---|");
     // Scene names asked for after `--` (cargo passes `--bench` too).
     let asked: Vec<String> = std::env::args()
         .skip(1)
@@ -69,12 +76,15 @@ fn main() {
             sheet(true, solve);
         }
     }
-    for meet in [false, true] {
+    for meet in [Meet::No, Meet::Others, Meet::AndSelf, Meet::Estimated] {
         if wanted("spheres 100 m apart") {
             spheres_apart(meet);
         }
         if wanted("hat on sphere") {
             hat_on_sphere(meet);
+        }
+        if wanted("cloth on ball") {
+            cloth_on_ball(meet);
         }
     }
 }
@@ -105,17 +115,40 @@ fn playground_sphere(gravity: Vec3) -> (bevy_point_springs::core::PointCloud, Su
     (cloud, config)
 }
 
-/// Whether the scene's surfaces meet each other, and its name in the table.
-fn meeting(meet: bool) -> (Option<SurfaceMeeting>, &'static str) {
-    if meet {
-        (Some(SurfaceMeeting::default()), "meeting")
-    } else {
-        (None, "not meeting")
+/// Whether the scene's surfaces meet each other: not at all, each other only, or each other
+/// and themselves.
+#[derive(Clone, Copy)]
+enum Meet {
+    No,
+    Others,
+    AndSelf,
+    Estimated,
+}
+
+/// The scene's meeting, and its name in the table.
+fn meeting(meet: Meet) -> (Option<SurfaceMeeting>, &'static str) {
+    match meet {
+        Meet::No => (None, "not meeting"),
+        Meet::Others => (
+            Some(SurfaceMeeting {
+                self_contact: false,
+                ..default()
+            }),
+            "meeting",
+        ),
+        Meet::AndSelf => (Some(SurfaceMeeting::default()), "meeting and self-contact"),
+        Meet::Estimated => (
+            Some(SurfaceMeeting {
+                in_step: false,
+                ..default()
+            }),
+            "meeting and self-contact, estimated",
+        ),
     }
 }
 
 /// Two of the playground's spheres floating 100 m apart.
-fn spheres_apart(meet: bool) {
+fn spheres_apart(meet: Meet) {
     let (meeting, name) = meeting(meet);
     let mut app = create_app();
     for x in [0.0, 100.0] {
@@ -135,7 +168,7 @@ fn spheres_apart(meet: bool) {
 
 /// The paper's hat (turned over, 300 simulation points) dropped onto the playground's
 /// sphere (its lower half held).
-fn hat_on_sphere(meet: bool) {
+fn hat_on_sphere(meet: Meet) {
     let (meeting, name) = meeting(meet);
     let mut app = create_app();
     let (cloud, config) = playground_sphere(Vec3::ZERO);
@@ -174,6 +207,56 @@ fn hat_on_sphere(meet: bool) {
     settle(&mut app);
     pin(&mut app, sphere, |p| p.y < 0.0);
     measure(&mut app, &format!("hat on sphere, {name}"), 0);
+}
+
+/// A 2 m square of cloth (600 simulation points) dropped on a ball of gas of radius 0.5
+/// (its lower half held): it drapes over the ball and its sides fold onto themselves (the
+/// self-contact test's scene, `tests/meet.rs`).
+fn cloth_on_ball(meet: Meet) {
+    let (meeting, name) = meeting(meet);
+    let mut app = create_app();
+    let (_, mut config) = playground_sphere(Vec3::ZERO);
+    config.simplify = SimplifyConfig::target(300);
+    let cloud = shapes::fibonacci_sphere(3000, 0.5);
+    let ball = app
+        .world_mut()
+        .spawn((DeformableSurface::cloud(cloud, config), awake()))
+        .id();
+    let cloth_config = SurfaceConfig {
+        simplify: SimplifyConfig::target(600),
+        material: SpringMaterial {
+            units: MaterialUnits::Sheet,
+            stretch_stiffness: 300.0,
+            stretch_damping: 0.2,
+            bending: BendingModel::Hinges,
+            bending_modulus: 1e-3,
+            density: 0.3,
+            ..default()
+        },
+        solver: SolverConfig {
+            integrator: Integrator::ImplicitEuler,
+            drag: 1.0,
+            gravity: Vec3::new(0.0, 0.0, -9.81),
+            ..default()
+        },
+        ..default()
+    };
+    let cloth = app
+        .world_mut()
+        .spawn((
+            DeformableSurface::cloud(shapes::square_sheet(2.0, 0.05), cloth_config),
+            Transform::from_xyz(0.0, 0.0, 0.8),
+            awake(),
+        ))
+        .id();
+    if let Some(m) = meeting {
+        for e in [ball, cloth] {
+            app.world_mut().entity_mut(e).insert(m.clone());
+        }
+    }
+    settle(&mut app);
+    pin(&mut app, ball, |p| p.z < 0.0);
+    measure(&mut app, &format!("cloth on ball, {name}"), 0);
 }
 
 /// How the surfaces' contacts reach their steps, and its name in the table.
@@ -221,6 +304,8 @@ fn measure(app: &mut App, scene: &str, balls: usize) {
     let mut whole = Vec::with_capacity(MEASURED_TICKS);
     let mut touching = 0;
     let mut colliders = 0;
+    let (mut met, mut own) = (0, 0);
+    let mut reports = app.world_mut().query::<&SurfaceMeetingReport>();
     for _ in 0..MEASURED_TICKS {
         let start = Instant::now();
         app.update();
@@ -229,13 +314,19 @@ fn measure(app: &mut App, scene: &str, balls: usize) {
         contacts.push(d.time);
         touching += d.touching;
         colliders = d.colliders;
+        for r in reports.iter(app.world()) {
+            met += r.touching();
+            own += r.self_touching();
+        }
     }
     let mut points = app.world_mut().query::<&SimulationPoints>();
     let points: usize = points.iter(app.world()).map(|p| p.len()).sum();
     let (c, w) = (median(&mut contacts), median(&mut whole));
     println!(
-        "| {scene} | {points} | {balls} | {colliders} | {} | {:.0} | {:.0} | {:.1} % |",
+        "| {scene} | {points} | {balls} | {colliders} | {} | {} / {} | {:.0} | {:.0} | {:.1} % |",
         touching / MEASURED_TICKS,
+        met / MEASURED_TICKS,
+        own / MEASURED_TICKS,
         c.as_secs_f64() * 1e6,
         w.as_secs_f64() * 1e6,
         100.0 * c.as_secs_f64() / w.as_secs_f64()

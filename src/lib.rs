@@ -84,8 +84,8 @@ pub mod prelude {
         PreparationProgress, PrepareAgain, PrepareAgainFailed, SaveGameError, SaveGameMessage,
         SaveGameOutcome, SaveName, SceneAsset, SceneTimeline, SimulationPoints, StepOnce,
         SurfaceAnchors, SurfaceAttachments, SurfaceForces, SurfaceHealth, SurfaceInView,
-        SurfaceMasses, SurfaceMaterial, SurfaceMeeting, SurfaceNetwork, SurfaceSettings,
-        SurfaceSleep, SurfaceSprings, SurfaceStatus, SurfaceStepper, SurfaceTimings,
-        SurfaceUnstable, SurfaceWork, TransferTiming,
+        SurfaceMasses, SurfaceMaterial, SurfaceMeeting, SurfaceMeetingReport, SurfaceNetwork,
+        SurfaceSettings, SurfaceSleep, SurfaceSprings, SurfaceStatus, SurfaceStepper,
+        SurfaceTimings, SurfaceUnstable, SurfaceWork, TransferTiming,
     };
 }

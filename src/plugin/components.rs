@@ -10,7 +10,8 @@
 //! | [`SurfaceSprings`] | stretch and bend springs: ends, rest lengths, stiffness, damping | read them |
 //! | [`SurfaceAnchors`] | anchor springs to world points (eq 5): pokes, drags, grabs ([`GrabMessage`](super::GrabMessage)) | add, move, remove |
 //! | [`SurfaceAttachments`](super::SurfaceAttachments) | sets of points tied to other entities' transforms (added by the game) | attach, retarget, detach; read the pulls |
-//! | [`SurfaceMeeting`](super::SurfaceMeeting) | whether and how the surface meets other surfaces, and what touched it (added by the game) | set it; read the report |
+//! | [`SurfaceMeeting`](super::SurfaceMeeting) | whether and how the surface meets other surfaces and itself (added by the game) | set it |
+//! | [`SurfaceMeetingReport`](super::SurfaceMeetingReport) | what touched it last tick (added with `SurfaceMeeting`) | read it |
 //! | [`SurfaceForces`] | a force per point, cleared after each tick | add to it in [`PointSpringsSystems::Forces`](super::PointSpringsSystems::Forces) |
 //! | [`SurfaceStepper`] | integrator settings, force buffers, running totals | change the integrator, gravity, drag |
 //! | [`SurfaceMaterial`] | density, spring stiffness and damping | change it (the springs follow) |

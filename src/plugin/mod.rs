@@ -71,7 +71,7 @@ pub use contact::{
 };
 pub use grab::{GrabMessage, GrabSettings, Grabs};
 pub use health::{STABLE_STEPS_TO_RECOVER, SurfaceHealth, SurfaceUnstable};
-pub use meet::SurfaceMeeting;
+pub use meet::{SurfaceMeeting, SurfaceMeetingReport};
 pub use model::{ModelMessage, ModelOutcome};
 pub use prepare::{PreparationPool, PrepareAgain, PrepareAgainFailed};
 pub use save::{
@@ -135,6 +135,7 @@ impl Plugin for PointSpringsPlugin {
             .register_type::<GrabSettings>()
             .register_type::<SaveName>()
             .register_type::<SurfaceMeeting>()
+            .register_type::<SurfaceMeetingReport>()
             .add_message::<GrabMessage>()
             .add_message::<SaveGameMessage>()
             .add_message::<SaveGameOutcome>()
@@ -175,6 +176,7 @@ impl Plugin for PointSpringsPlugin {
                         sleep::wake_surfaces,
                         simulate::integrate,
                         attach::record_pulls,
+                        meet::record_meeting_contacts,
                         health::watch_health,
                         simulate::plastic_flow,
                         sleep::settle_surfaces,

@@ -39,10 +39,12 @@ use crate::core::simplify::tangent_delaunay::{RingBuilder, RingShape};
 mod build;
 mod check;
 mod collapse;
+mod intersect;
 mod mass;
 pub mod mesh;
 mod repair;
 mod reshape;
+pub use intersect::{segment_crosses_triangle, surface_intersections};
 pub use reshape::RestShape;
 
 use crate::core::simplify::{MAX_SIMPLIFY_K, MIN_SIMPLIFY_K, MIN_SIMULATION_POINTS};

@@ -226,8 +226,11 @@ pub(crate) fn record_step_contacts(
         }
         let linear = Mat3::from(place.affine().matrix3);
         let (mut impulse, mut touching) = (Vec3::ZERO, 0);
+        // Only the contacts this plugin handed to the step (the game's systems, and
+        // surfaces meeting surfaces, hand theirs too).
+        let own = report.links_from..report.links_from + report.links.len();
         for (k, j) in stepper.contact_impulses().iter().enumerate() {
-            if *j == Vec3::ZERO {
+            if *j == Vec3::ZERO || !own.contains(&k) {
                 continue;
             }
             let world = linear * *j;

@@ -28,9 +28,13 @@
 //! receives is exactly the momentum the body loses.
 
 mod grid;
+mod neighbours;
 pub(crate) mod step;
+mod triangle;
 
 pub use grid::PointGrid;
+pub use neighbours::{DEFAULT_SELF_CONTACT_RINGS, NetworkNeighbours};
+pub use triangle::{Stencil, StencilProximity, closest_on_triangle, stencil_impulse};
 
 use glam::{Mat3, Vec3};
 
