@@ -153,7 +153,10 @@ impl NetworkNeighbours {
     /// thickness self-contact keeps the point from it: those not at the point whose corners
     /// are all its neighbours (none for a point out of range).
     pub fn near_triangles(&self, i: usize) -> &[(u32, f32)] {
-        match (self.triangle_start.get(i), self.triangle_start.get(i + 1)) {
+        match (
+            self.triangle_start.get(i),
+            self.triangle_start.get(i.wrapping_add(1)),
+        ) {
             (Some(&a), Some(&b)) => &self.triangles[a as usize..b as usize],
             _ => &[],
         }
@@ -161,12 +164,12 @@ impl NetworkNeighbours {
 
     /// Whether `j` is one of `i`'s neighbours (false for points out of range).
     pub fn contains(&self, i: usize, j: usize) -> bool {
-        self.of(i).binary_search(&(j as u32)).is_ok()
+        u32::try_from(j).is_ok_and(|j| self.of(i).binary_search(&j).is_ok())
     }
 
     /// Point `i`'s neighbours, sorted (none for a point out of range).
     pub fn of(&self, i: usize) -> &[u32] {
-        match (self.start.get(i), self.start.get(i + 1)) {
+        match (self.start.get(i), self.start.get(i.wrapping_add(1))) {
             (Some(&a), Some(&b)) => &self.items[a as usize..b as usize],
             _ => &[],
         }
