@@ -1,6 +1,7 @@
-//! Rigid bodies and deformable surfaces touching, and surfaces touching each other: the hat
-//! dropped on a sphere on a floor, balls dropped on them every second and a half, and the
-//! mouse to poke and drag.
+//! Rigid bodies and deformable surfaces touching, and surfaces touching each other and
+//! themselves: the hat dropped on a sphere on a floor, a sheet dropped on its edge that
+//! folds on itself, balls dropped on the hat every second and a half, and the mouse to poke
+//! and drag.
 //!
 //! ```sh
 //! cargo run --release --features egui,rapier --example playground
@@ -10,8 +11,10 @@
 //! The sphere (3203 points, 338 simulation points, gas inside) sits on the floor under
 //! gravity; the hat's cloud (the cap of a sphere, 300 simulation points), turned over, is
 //! dropped onto it from a metre above and rests on it like a cap on a head: both carry
-//! [`SurfaceMeeting`], so their points push each other apart. Both are
-//! [`DeformableSurface`]s; the floor and the balls are bevy_rapier3d bodies.
+//! [`SurfaceMeeting`], so their points push each other apart. Beside them a 1.4 m sheet
+//! (400 simulation points), dropped standing on its edge, buckles and folds on itself; its
+//! `SurfaceMeeting` keeps the folds apart. All three are [`DeformableSurface`]s; the floor
+//! and the balls are bevy_rapier3d bodies.
 //! [`SurfaceContactPlugin`] makes every simulation point a small sphere that rapier's
 //! colliders push, and pushes them back. Left-drag pokes and pulls a surface, right-drag
 //! orbits, the wheel zooms, G shows the simulation points and springs, Space pauses. Built
@@ -20,8 +23,10 @@
 mod utils;
 
 use bevy::prelude::*;
+use bevy_point_springs::core::cloud::shapes;
 use bevy_point_springs::core::pipeline::SurfaceConfig;
 use bevy_point_springs::core::simplify::SimplifyConfig;
+use bevy_point_springs::core::solver::MaterialUnits;
 use bevy_point_springs::prelude::*;
 use bevy_rapier3d::prelude::*;
 use utils::{DemoArgs, DemoPlugin, spawn_camera_and_light};
@@ -51,6 +56,14 @@ const HAT_DROP: f32 = 1.0;
 
 /// Air drag on the hat (per second), which steadies it as it lands.
 const HAT_DRAG: f32 = 1.0;
+
+/// The sheet: its side (m), where its middle starts (standing on its edge, 0.9 m above
+/// the floor, beside the sphere), how far it leans, and its flexural rigidity (N·m): soft
+/// enough to fold on itself where it lands (`tests/contact.rs` drops the same sheet).
+const SHEET_SIDE: f32 = 1.4;
+const SHEET_AT: Vec3 = Vec3::new(-2.0, 1.6, 0.6);
+const SHEET_LEAN: f32 = 0.05;
+const SHEET_BENDING: f32 = 1e-3;
 
 fn main() -> AppExit {
     App::new()
@@ -102,7 +115,14 @@ fn setup(
             ..default()
         },
         pressure: Some(1000.0),
-        solver,
+        // Damping on the springs' whole relative velocity (the paper's eq 3): a ball set on
+        // the sphere sinks in, bobs once and rests within two seconds. Along the springs
+        // only (the default), the dent's up-and-down motion is barely damped and the ball
+        // bobs for seven seconds (`tests/contact.rs`).
+        solver: SolverConfig {
+            damping_model: DampingModel::Relative,
+            ..solver
+        },
         ..default()
     };
     commands.spawn((
@@ -132,6 +152,37 @@ fn setup(
             ..default()
         },
         Transform::from_translation(SPHERE_AT + Vec3::Y * HAT_DROP).with_rotation(turn),
+    ));
+    // The sheet, standing on its edge: it buckles as it lands and folds on itself
+    // (`SurfaceMeeting`'s self-contact keeps its folds from passing through each other).
+    let lean = Quat::from_rotation_x(SHEET_LEAN);
+    let sheet = SurfaceConfig {
+        simplify: SimplifyConfig::target(400),
+        material: SpringMaterial {
+            units: MaterialUnits::Sheet,
+            stretch_stiffness: 300.0,
+            stretch_damping: 0.2,
+            bending: BendingModel::Hinges,
+            bending_modulus: SHEET_BENDING,
+            density: 0.3,
+            ..default()
+        },
+        solver: SolverConfig {
+            drag: 0.2,
+            gravity: lean.inverse() * solver.gravity,
+            ..solver
+        },
+        ..default()
+    };
+    commands.spawn((
+        Name::new("sheet"),
+        DeformableSurface::cloud(shapes::square_sheet(SHEET_SIDE, 0.025 * SHEET_SIDE), sheet),
+        SurfaceMeeting::default(),
+        SurfelRender {
+            color: Color::srgb(0.25, 0.6, 0.55),
+            ..default()
+        },
+        Transform::from_translation(SHEET_AT).with_rotation(lean),
     ));
     // The floor: a rapier collider and its slab.
     commands.spawn((
