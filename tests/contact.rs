@@ -781,3 +781,64 @@ fn a_sheet_dropped_on_the_floor_folds_without_crossing_itself() {
         "without self-contact it crosses itself: {worst}"
     );
 }
+
+/// Two balls of gas (radius 0.5, 250 simulation points) meeting each other
+/// ([`SurfaceMeeting`]), thrown at each other at 2 m/s each without gravity, each with the
+/// rapier `CollisionGroups` given. Returns the closest their centres came in a second.
+fn throw_two_meeting_balls(groups: [CollisionGroups; 2]) -> f32 {
+    let mut app = create_app(Vec3::ZERO);
+    let config = SurfaceConfig {
+        simplify: SimplifyConfig::target(250),
+        pressure: Some(100.0),
+        solver: SolverConfig {
+            gravity: Vec3::ZERO,
+            ..default()
+        },
+        ..default()
+    };
+    let [a, b] = [(-0.7, groups[0]), (0.7, groups[1])].map(|(x, groups)| {
+        app.world_mut()
+            .spawn((
+                DeformableSurface::cloud(shapes::fibonacci_sphere(1500, 0.5), config.clone()),
+                SurfaceMeeting::default(),
+                groups,
+                Transform::from_xyz(x, 0.0, 0.0),
+            ))
+            .id()
+    });
+    settle(&mut app, a);
+    settle(&mut app, b);
+    for (e, v) in [(a, Vec3::X * 2.0), (b, Vec3::NEG_X * 2.0)] {
+        let mut points = app.world_mut().get_mut::<SimulationPoints>(e).unwrap();
+        for i in 0..points.len() {
+            points.set_velocity(i, v).unwrap();
+        }
+    }
+    let centre = |app: &App, e: Entity| {
+        let points = app.world().get::<SimulationPoints>(e).unwrap();
+        let place = app.world().get::<GlobalTransform>(e).unwrap();
+        place.transform_point(points.iter_positions().sum::<Vec3>() / points.len() as f32)
+    };
+    let mut closest = f32::MAX;
+    for _ in 0..60 {
+        app.update();
+        closest = closest.min(centre(&app, a).distance(centre(&app, b)));
+    }
+    closest
+}
+
+#[test]
+fn surfaces_meet_as_their_collision_groups_allow() {
+    // In each other's groups (rapier's default: every group) the balls bounce apart before
+    // their centres come within a radius.
+    let all = CollisionGroups::default();
+    let closest = throw_two_meeting_balls([all, all]);
+    assert!(closest > 0.5, "they met: {closest}");
+    // Each one's filter leaves the other out: they pass through each other, as rapier's
+    // colliders with those groups do.
+    let closest = throw_two_meeting_balls([
+        CollisionGroups::new(Group::GROUP_1, Group::GROUP_1),
+        CollisionGroups::new(Group::GROUP_2, Group::GROUP_1 | Group::GROUP_2),
+    ]);
+    assert!(closest < 0.1, "they passed through: {closest}");
+}

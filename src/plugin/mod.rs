@@ -168,6 +168,8 @@ impl Plugin for PointSpringsPlugin {
                         simulate::drive_timelines,
                         simulate::apply_materials,
                         simulate::accumulate_forces,
+                        #[cfg(feature = "rapier")]
+                        meet::read_collision_groups,
                         meet::meet_surfaces,
                     )
                         .chain()

@@ -3,8 +3,10 @@
 //!
 //! Each tick, after the surfaces' own forces and before their steps ([`meet_surfaces`]):
 //!
-//! 1. each meeting surface's bounds, swept over the tick by its fastest point, are compared
-//!    pair by pair (with the groups' filter); two far-apart surfaces cost that test alone;
+//! 1. each meeting surface's bounds, swept over the tick by its fastest point, are sorted
+//!    and swept along x ([`overlapping_pairs`]), and the pairs whose bounds overlap are
+//!    filtered by their groups (and rapier's `CollisionGroups`); two far-apart surfaces
+//!    cost that test alone, and many surfaces a sort and the pairs that overlap along x;
 //! 2. for a pair whose bounds meet, the points of both in world coordinates, each with the
 //!    velocity its own forces give it over the tick (as heavy as its step mass), and the
 //!    second's points bucketed in a grid;
@@ -35,8 +37,8 @@ use bevy::prelude::*;
 use crate::core::network::SpringNetwork;
 use crate::core::solver::contact::{
     BodyState, ContactParams, DEFAULT_DEPTH_RECOVERY, DEFAULT_FRICTION, DEFAULT_RADIUS_SCALE,
-    DEFAULT_SELF_CONTACT_RINGS, PointGrid, Proximity, StepContact, group_step_masses, point_radii,
-    resolve, step_masses,
+    DEFAULT_SELF_CONTACT_RINGS, PointGrid, Proximity, StepContact, group_step_masses,
+    overlapping_pairs, point_radii, resolve, step_masses,
 };
 
 use super::components::{
@@ -73,7 +75,9 @@ pub const ALL_GROUPS: u32 = u32::MAX;
 
 /// How a surface meets other surfaces and itself (opt-in: surfaces without it pass through
 /// each other and through themselves). Two surfaces meet when each one's `groups` share a
-/// bit with the other's `filter`. What touched the surface is in its
+/// bit with the other's `filter`, and, with the `rapier` feature, when their rapier
+/// `CollisionGroups` (where they have them) allow it as they would for two colliders: one
+/// `CollisionGroups` on a surface then chooses both the bodies and the surfaces it touches. What touched the surface is in its
 /// [`SurfaceMeetingReport`], added with this.
 #[derive(Component, Debug, Clone, Reflect)]
 #[reflect(Component, Debug, Default)]
@@ -125,11 +129,69 @@ impl Default for SurfaceMeeting {
 }
 
 impl SurfaceMeeting {
-    fn meets(&self, other: &Self) -> bool {
+    /// Whether this surface and `other` meet: both enabled, and each one's groups in the
+    /// other's filter, both by their own settings and by rapier's `CollisionGroups` where
+    /// a surface has them (read this tick into `mine` and `theirs`; a surface without them
+    /// is in every group and meets every group, as in rapier).
+    fn meets(
+        &self,
+        mine: &SurfaceMeetingReport,
+        other: &Self,
+        theirs: &SurfaceMeetingReport,
+    ) -> bool {
+        let own = |m: &Self| GroupBits {
+            groups: m.groups,
+            filter: m.filter,
+        };
         self.enabled
             && other.enabled
-            && self.groups & other.filter != 0
-            && other.groups & self.filter != 0
+            && own(self).allow(&own(other))
+            && mine.collision_groups.allow(&theirs.collision_groups)
+    }
+}
+
+/// A surface's groups and the groups it meets, as bits.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct GroupBits {
+    groups: u32,
+    filter: u32,
+}
+
+impl Default for GroupBits {
+    /// In every group, meeting every group.
+    fn default() -> Self {
+        Self {
+            groups: ALL_GROUPS,
+            filter: ALL_GROUPS,
+        }
+    }
+}
+
+impl GroupBits {
+    /// Whether each side's groups share a bit with the other's filter.
+    fn allow(&self, other: &Self) -> bool {
+        self.groups & other.filter != 0 && other.groups & self.filter != 0
+    }
+}
+
+/// Reads each meeting surface's rapier [`CollisionGroups`] for this tick's meeting: they
+/// choose which surfaces meet as they choose which colliders touch, on top of
+/// [`SurfaceMeeting::groups`] and [`SurfaceMeeting::filter`].
+///
+/// [`CollisionGroups`]: bevy_rapier3d::prelude::CollisionGroups
+#[cfg(feature = "rapier")]
+pub fn read_collision_groups(
+    mut surfaces: Query<(
+        Option<&bevy_rapier3d::prelude::CollisionGroups>,
+        &mut SurfaceMeetingReport,
+    )>,
+) {
+    for (groups, mut report) in &mut surfaces {
+        report.bypass_change_detection().collision_groups =
+            groups.map_or_else(GroupBits::default, |g| GroupBits {
+                groups: g.memberships.bits(),
+                filter: g.filters.bits(),
+            });
     }
 }
 
@@ -137,6 +199,10 @@ impl SurfaceMeeting {
 #[derive(Component, Debug, Clone, Default, Reflect)]
 #[reflect(Component, Debug, Default)]
 pub struct SurfaceMeetingReport {
+    /// The memberships and filters of the surface's rapier `CollisionGroups` this tick (every
+    /// group without them, or without the `rapier` feature).
+    #[reflect(ignore)]
+    collision_groups: GroupBits,
     /// Surfaces whose bounds met this one's last tick.
     near: usize,
     /// This surface's points that took an impulse from another surface last tick.
@@ -341,16 +407,19 @@ pub fn meet_surfaces(time: Res<Time>, mut surfaces: Query<MeetParts>) {
     if sides.len() < 2 {
         return;
     }
-    for i in 0..sides.len() {
-        for j in i + 1..sides.len() {
-            let (a, b) = (&sides[i], &sides[j]);
-            let Ok([first, second]) = surfaces.get_many_mut([a.0, b.0]) else {
-                continue;
-            };
-            let (mut first, mut second) = (Pair::of(first), Pair::of(second));
-            if !first.meeting.meets(second.meeting) || !a.1.overlaps(&b.1) {
-                continue;
-            }
+    // The pairs whose swept bounds overlap, found by sorting and sweeping them along x:
+    // surfaces far apart along x are not even compared.
+    let bounds: Vec<(Vec3, Vec3)> = sides.iter().map(|(_, s)| (s.lo, s.hi)).collect();
+    for (i, j) in overlapping_pairs(&bounds) {
+        let (a, b) = (&sides[i], &sides[j]);
+        let Ok([first, second]) = surfaces.get_many_mut([a.0, b.0]) else {
+            continue;
+        };
+        let (mut first, mut second) = (Pair::of(first), Pair::of(second));
+        if first
+            .meeting
+            .meets(first.report, second.meeting, second.report)
+        {
             meet_pair(&mut first, &a.1, &mut second, &b.1, dt);
         }
     }
@@ -441,10 +510,6 @@ impl Side {
         } else {
             1.0 / step_mass
         }
-    }
-
-    fn overlaps(&self, other: &Side) -> bool {
-        self.lo.cmple(other.hi).all() && other.lo.cmple(self.hi).all()
     }
 }
 

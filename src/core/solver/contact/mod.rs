@@ -27,11 +27,13 @@
 //! accumulator) and applies the opposite impulse to the body, so the momentum the surface
 //! receives is exactly the momentum the body loses.
 
+mod broad;
 mod grid;
 mod neighbours;
 pub(crate) mod step;
 mod triangle;
 
+pub use broad::overlapping_pairs;
 pub use grid::PointGrid;
 pub use neighbours::{DEFAULT_SELF_CONTACT_RINGS, NetworkNeighbours};
 pub use triangle::{Stencil, StencilProximity, closest_on_triangle, stencil_impulse};
