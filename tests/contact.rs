@@ -799,7 +799,7 @@ fn throw_two_meeting_balls(groups: [CollisionGroups; 2]) -> f32 {
     let [a, b] = [(-0.7, groups[0]), (0.7, groups[1])].map(|(x, groups)| {
         app.world_mut()
             .spawn((
-                DeformableSurface::cloud(shapes::fibonacci_sphere(1500, 0.5), config.clone()),
+                DeformableSurface::cloud(shapes::fibonacci_sphere(1500, 0.5), config),
                 SurfaceMeeting::default(),
                 groups,
                 Transform::from_xyz(x, 0.0, 0.0),
