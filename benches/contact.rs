@@ -56,9 +56,9 @@ const SHEET_BALL_RADIUS: f32 = 0.3;
 
 fn main() {
     println!(
-        "| scene | simulation points | balls | colliders | points touching | touching surfaces / themselves | contacts µs/tick | whole tick µs | contacts share |"
+        "| scene | simulation points | balls | colliders | points touching | touching surfaces / themselves | CG iterations / tick | contacts µs/tick | whole tick µs | contacts share |"
     );
-    println!("|---|---|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|---|---|");
     // Scene names asked for after `--` (cargo passes `--bench` too).
     let asked: Vec<String> = std::env::args()
         .skip(1)
@@ -306,6 +306,14 @@ fn measure(app: &mut App, scene: &str, balls: usize) {
     let mut colliders = 0;
     let (mut met, mut own) = (0, 0);
     let mut reports = app.world_mut().query::<&SurfaceMeetingReport>();
+    let mut steppers = app.world_mut().query::<&SurfaceStepper>();
+    let iterations = |app: &App, steppers: &mut QueryState<&SurfaceStepper>| -> u64 {
+        steppers
+            .iter(app.world())
+            .map(|s| s.diagnostics().cg_iterations)
+            .sum()
+    };
+    let iterations_before = iterations(app, &mut steppers);
     for _ in 0..MEASURED_TICKS {
         let start = Instant::now();
         app.update();
@@ -322,8 +330,9 @@ fn measure(app: &mut App, scene: &str, balls: usize) {
     let mut points = app.world_mut().query::<&SimulationPoints>();
     let points: usize = points.iter(app.world()).map(|p| p.len()).sum();
     let (c, w) = (median(&mut contacts), median(&mut whole));
+    let cg = (iterations(app, &mut steppers) - iterations_before) / MEASURED_TICKS as u64;
     println!(
-        "| {scene} | {points} | {balls} | {colliders} | {} | {} / {} | {:.0} | {:.0} | {:.1} % |",
+        "| {scene} | {points} | {balls} | {colliders} | {} | {} / {} | {cg} | {:.0} | {:.0} | {:.1} % |",
         touching / MEASURED_TICKS,
         met / MEASURED_TICKS,
         own / MEASURED_TICKS,
