@@ -514,16 +514,31 @@ fn contact_impulse(
         return None; // neither side can move
     }
     let normal_impulse = (allowed - normal_speed) / normal_compliance;
-    let mut impulse = p.normal * normal_impulse;
-    let sliding = relative - p.normal * normal_speed;
-    let slide_speed = sliding.length();
-    if params.friction > 0.0 && slide_speed > SPEED_EPSILON {
-        let tangent = sliding / slide_speed;
-        let tangent_compliance = p.inv_mass + body.inv_mass_along(p.at, tangent);
-        let stop = slide_speed / tangent_compliance;
-        impulse -= tangent * stop.min(params.friction * normal_impulse);
-    }
+    let impulse = p.normal * normal_impulse
+        + friction_impulse(relative, p.normal, normal_impulse, params.friction, |t| {
+            p.inv_mass + body.inv_mass_along(p.at, t)
+        });
     impulse.is_finite().then_some(impulse)
+}
+
+/// Coulomb friction with a contact's normal impulse: the impulse against the `relative`
+/// velocity's slide across `normal` that stops the slide, or μ times the normal impulse if
+/// less. `compliance(t)` is how far an impulse of 1 along `t` changes the relative velocity.
+pub(crate) fn friction_impulse(
+    relative: Vec3,
+    normal: Vec3,
+    normal_impulse: f32,
+    friction: f32,
+    compliance: impl Fn(Vec3) -> f32,
+) -> Vec3 {
+    let sliding = relative - normal * relative.dot(normal);
+    let slide_speed = sliding.length();
+    if friction <= 0.0 || slide_speed <= SPEED_EPSILON {
+        return Vec3::ZERO;
+    }
+    let tangent = sliding / slide_speed;
+    let stop = slide_speed / compliance(tangent);
+    -tangent * stop.min(friction * normal_impulse)
 }
 
 #[cfg(test)]

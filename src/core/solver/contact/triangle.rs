@@ -7,7 +7,7 @@
 
 use glam::Vec3;
 
-use super::{ContactParams, SPEED_EPSILON};
+use super::{ContactParams, friction_impulse};
 
 /// The point of the triangle `a b c` closest to `p`, and its barycentric weights (each in
 /// [0, 1], summing to 1). A degenerate triangle gives its closest corner or edge.
@@ -112,13 +112,10 @@ pub fn stencil_impulse(p: &StencilProximity, dt: f32, params: &ContactParams) ->
         return None;
     }
     let normal_impulse = (allowed - normal_speed) / compliance;
-    let mut impulse = p.normal * normal_impulse;
-    let sliding = relative - p.normal * normal_speed;
-    let slide_speed = sliding.length();
-    if params.friction > 0.0 && slide_speed > SPEED_EPSILON {
-        let stop = slide_speed / compliance;
-        impulse -= sliding / slide_speed * stop.min(params.friction * normal_impulse);
-    }
+    let impulse = p.normal * normal_impulse
+        + friction_impulse(relative, p.normal, normal_impulse, params.friction, |_| {
+            compliance
+        });
     impulse.is_finite().then_some(impulse)
 }
 
