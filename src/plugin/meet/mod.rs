@@ -77,8 +77,8 @@ pub const ALL_GROUPS: u32 = u32::MAX;
 /// each other and through themselves). Two surfaces meet when each one's `groups` share a
 /// bit with the other's `filter`, and, with the `rapier` feature, when their rapier
 /// `CollisionGroups` (where they have them) allow it as they would for two colliders: one
-/// `CollisionGroups` on a surface then chooses both the bodies and the surfaces it touches. What touched the surface is in its
-/// [`SurfaceMeetingReport`], added with this.
+/// `CollisionGroups` on a surface then chooses both the bodies and the surfaces it
+/// touches. What touched the surface is in its [`SurfaceMeetingReport`], added with this.
 #[derive(Component, Debug, Clone, Reflect)]
 #[reflect(Component, Debug, Default)]
 #[require(SurfaceMeetingReport)]
