@@ -81,9 +81,9 @@ pub mod prelude {
     pub use crate::plugin::{
         AttachPoints, AttachmentState, CloudAsset, DeformableSurface, DenseSurface, GrabMessage,
         GrabSettings, Grabs, ModelMessage, ModelOutcome, PointSpringsPlugin, PointSpringsSystems,
-        PreparationProgress, PrepareAgain, PrepareAgainFailed, SaveGameError, SaveGameMessage,
-        SaveGameOutcome, SaveName, SceneAsset, SceneTimeline, SimulationPoints, StepOnce,
-        SurfaceAnchors, SurfaceAttachments, SurfaceForces, SurfaceHealth, SurfaceInView,
+        PreparationProgress, PrepareAgain, PrepareAgainFailed, PreviousTick, SaveGameError,
+        SaveGameMessage, SaveGameOutcome, SaveName, SceneAsset, SceneTimeline, SimulationPoints,
+        StepOnce, SurfaceAnchors, SurfaceAttachments, SurfaceForces, SurfaceHealth, SurfaceInView,
         SurfaceMasses, SurfaceMaterial, SurfaceMeeting, SurfaceMeetingReport, SurfaceNetwork,
         SurfaceSettings, SurfaceSleep, SurfaceSprings, SurfaceStatus, SurfaceStepper,
         SurfaceTimings, SurfaceUnstable, SurfaceWork, TransferTiming,

@@ -389,6 +389,72 @@ fn bad_inputs_fail_their_surface_only() {
 }
 
 #[test]
+fn an_interpolated_surface_is_drawn_between_its_last_two_ticks() {
+    // One and a half ticks per update: the frames fall half-way between ticks and on them.
+    let mut app = create_app(&assets_dir(), TICK);
+    app.insert_resource(TimeUpdateStrategy::ManualDuration(TICK * 3 / 2));
+    let surface = app
+        .world_mut()
+        .spawn((
+            floating(1200, 120),
+            SurfaceSettings {
+                transfer: TransferTiming::Interpolated,
+                ..default()
+            },
+            Windy,
+        ))
+        .id();
+    app.add_systems(FixedUpdate, wind.in_set(PointSpringsSystems::Forces));
+    settle(&mut app, &[surface]);
+    let mut fractions = Vec::new();
+    for _ in 0..8 {
+        app.update();
+        let along = app.world().resource::<Time<Fixed>>().overstep_fraction();
+        fractions.push(along);
+        let world = app.world();
+        let previous = world
+            .get::<PreviousTick>(surface)
+            .unwrap()
+            .positions()
+            .to_vec();
+        let points = world.get::<SimulationPoints>(surface).unwrap();
+        let dense = world.get::<DenseSurface>(surface).unwrap();
+        assert_eq!(previous.len(), points.len());
+        // The dense surface at each of the two ticks, by the same transfer.
+        let at = |positions: &[Vec3]| -> Vec<Vec3> {
+            let mut cloud = dense.0.clone();
+            let state = bevy_point_springs::core::solver::PointState::new(positions).unwrap();
+            bevy_point_springs::plugin::simulate::follow(&mut cloud, &state).unwrap();
+            cloud.positions().to_vec()
+        };
+        let (from, to) = (at(&previous), at(&points.positions()));
+        let moved = from
+            .iter()
+            .zip(&to)
+            .map(|(a, b)| a.distance(*b))
+            .fold(0.0_f32, f32::max);
+        assert!(
+            moved > 1e-5,
+            "the wind moves the surface each tick: {moved}"
+        );
+        // Drawn: the blend of the two ticks' dense surfaces, to f32 rounding.
+        let worst = dense
+            .positions()
+            .iter()
+            .zip(from.iter().zip(&to))
+            .map(|(drawn, (a, b))| drawn.distance(a.lerp(*b, along)))
+            .fold(0.0_f32, f32::max);
+        assert!(worst < 1e-5, "{worst} off the blend at {along}");
+    }
+    // Half-way between ticks and on them, in turn.
+    assert!(
+        fractions.iter().any(|&f| (f - 0.5).abs() < 1e-3),
+        "{fractions:?}"
+    );
+    assert!(fractions.iter().any(|&f| f < 1e-3), "{fractions:?}");
+}
+
+#[test]
 fn transfer_once_per_frame_when_asked() {
     // Three ticks per update.
     let mut app = create_app(&assets_dir(), TICK);

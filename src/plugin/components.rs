@@ -76,6 +76,7 @@ pub enum SurfaceSource {
 #[require(
     SurfaceStatus,
     SurfaceHealth,
+    PreviousTick,
     SurfaceSettings,
     SurfaceSleep,
     SurfaceWork,
@@ -179,6 +180,31 @@ pub enum TransferTiming {
     /// Once per rendered frame (in `PostUpdate`), if a tick moved the points: cheaper when
     /// ticks outnumber frames. Resampling still happens on its tick.
     PerFrame,
+    /// Once per rendered frame, at the frame's time between the last two ticks: the
+    /// simulation points' positions at the start and the end of the last tick blended by
+    /// `Time<Fixed>::overstep_fraction()`, then transferred, so that the surface moves
+    /// smoothly at any frame rate (the drawn surface is then up to a tick behind the
+    /// simulation, as interpolated rigid bodies are). The transfer is linear in the
+    /// points' positions, so the drawn positions are exactly the blend of the two ticks'.
+    Interpolated,
+}
+
+/// A surface's simulation points where the last tick started, for
+/// [`TransferTiming::Interpolated`] (kept only for surfaces that ask for it).
+#[derive(Component, Debug, Clone, Default)]
+pub struct PreviousTick {
+    /// The positions at the start of the last tick (the surface's own coordinates); empty
+    /// until a tick has run.
+    pub(crate) positions: Vec<Vec3>,
+    /// The blend drawn this frame, kept to save an allocation a frame.
+    pub(crate) blend: Option<PointState>,
+}
+
+impl PreviousTick {
+    /// The positions at the start of the last tick (empty until a tick has run).
+    pub fn positions(&self) -> &[Vec3] {
+        &self.positions
+    }
 }
 
 /// Per-surface settings of the plugin.

@@ -60,8 +60,8 @@ pub use attach::{
 };
 pub use components::{
     DEFAULT_SLEEP_AFTER, DEFAULT_SLEEP_SPEED, DeformableSurface, DenseSurface, PreparationProgress,
-    SceneTimeline, SimulationPoints, SleepSettings, StepOnce, SurfaceAnchors, SurfaceForces,
-    SurfaceInView, SurfaceMasses, SurfaceMaterial, SurfaceNetwork, SurfacePressure,
+    PreviousTick, SceneTimeline, SimulationPoints, SleepSettings, StepOnce, SurfaceAnchors,
+    SurfaceForces, SurfaceInView, SurfaceMasses, SurfaceMaterial, SurfaceNetwork, SurfacePressure,
     SurfaceSettings, SurfaceSleep, SurfaceSource, SurfaceSprings, SurfaceStatus, SurfaceStepper,
     SurfaceTimings, SurfaceWork, TransferTiming,
 };
@@ -162,6 +162,7 @@ impl Plugin for PointSpringsPlugin {
                 self.schedule,
                 (
                     (
+                        simulate::remember_previous_tick,
                         model::apply_model_requests,
                         grab::apply_grabs,
                         attach::hold_attachments,

@@ -30,10 +30,10 @@ use crate::core::solver::{PointState, SpringMaterial};
 use crate::core::transfer::TransferError;
 
 use super::components::{
-    DenseSurface, ModelQuery, SceneTimeline, SimulationPoints, StepOnce, SurfaceAnchors,
-    SurfaceForces, SurfaceInView, SurfaceMasses, SurfaceMaterial, SurfaceNetwork, SurfaceSettings,
-    SurfaceSleep, SurfaceSprings, SurfaceStatus, SurfaceStepper, SurfaceTimings, SurfaceWork,
-    TransferTiming,
+    DenseSurface, ModelQuery, PreviousTick, SceneTimeline, SimulationPoints, StepOnce,
+    SurfaceAnchors, SurfaceForces, SurfaceInView, SurfaceMasses, SurfaceMaterial, SurfaceNetwork,
+    SurfaceSettings, SurfaceSleep, SurfaceSprings, SurfaceStatus, SurfaceStepper, SurfaceTimings,
+    SurfaceWork, TransferTiming,
 };
 
 /// Dense surfaces up to this many points follow the simulation on the calling thread
@@ -254,7 +254,11 @@ pub(crate) fn plastic_flow(time: Res<Time>, mut surfaces: Query<FlowParts>) {
 /// What the transfer systems read and change of a surface.
 type TransferParts = (
     Entity,
-    (&'static SimulationPoints, &'static SurfaceMasses),
+    (
+        &'static SimulationPoints,
+        &'static SurfaceMasses,
+        &'static mut PreviousTick,
+    ),
     &'static SurfaceStepper,
     &'static mut DenseSurface,
     &'static mut SurfaceStatus,
@@ -268,7 +272,7 @@ type TransferParts = (
 pub(crate) fn transfer_tick(mut surfaces: Query<TransferParts>) {
     for (
         entity,
-        (points, masses),
+        (points, masses, _),
         stepper,
         mut dense,
         mut status,
@@ -317,10 +321,13 @@ fn follow_counted(
 
 /// The transfer of surfaces that follow once per rendered frame (and are in view), and of
 /// surfaces just seen again (so that they are not drawn as they were until the next tick).
-pub(crate) fn transfer_frame(mut surfaces: Query<TransferParts>) {
+pub(crate) fn transfer_frame(time: Option<Res<Time<Fixed>>>, mut surfaces: Query<TransferParts>) {
+    // Where the frame is between the last tick and the next (1: at the last tick, as
+    // without a fixed clock).
+    let along = time.map_or(1.0, |t| t.overstep_fraction().clamp(0.0, 1.0));
     for (
         entity,
-        (points, masses),
+        (points, masses, mut previous),
         _,
         mut dense,
         mut status,
@@ -328,15 +335,65 @@ pub(crate) fn transfer_frame(mut surfaces: Query<TransferParts>) {
         (mut work, mut timings),
     ) in &mut surfaces
     {
-        let due = settings.transfer == TransferTiming::PerFrame || in_view.is_changed();
+        let due = settings.transfer != TransferTiming::EveryTick || in_view.is_changed();
         if status.is_ready() && in_view.0 && due {
             let start = Instant::now();
             if let Err(e) = dense.hold(masses) {
                 fail(entity, &mut status, "holding the pins", e);
                 continue;
             }
-            follow_counted(entity, &mut dense, points, &mut status, &mut work);
+            let drawn = if settings.transfer == TransferTiming::Interpolated {
+                blend(previous.bypass_change_detection(), points, along)
+            } else {
+                points
+            };
+            follow_counted(entity, &mut dense, drawn, &mut status, &mut work);
             timings.transfer_ms = ms_since(start);
+        }
+    }
+}
+
+/// The simulation points `along` the way from where the last tick started to where it
+/// ended (kept in `previous`); the points as they are where no tick has run yet or their
+/// number changed.
+fn blend<'a>(previous: &'a mut PreviousTick, points: &'a PointState, along: f32) -> &'a PointState {
+    let PreviousTick { positions, blend } = previous;
+    if positions.len() != points.len() || points.is_empty() {
+        return points;
+    }
+    if blend.as_ref().is_none_or(|b| b.len() != points.len()) {
+        *blend = PointState::new(positions).ok();
+    }
+    let Some(blend) = blend.as_mut() else {
+        return points;
+    };
+    for (i, from) in positions.iter().enumerate() {
+        let at = from.lerp(points.position(i), along);
+        if blend.set_position(i, at).is_err() {
+            return points;
+        }
+    }
+    blend
+}
+
+/// Keeps, for surfaces drawn between ticks ([`TransferTiming::Interpolated`]), where the
+/// simulation points are as the tick starts (after any change the game made since the
+/// last one).
+pub(crate) fn remember_previous_tick(
+    mut surfaces: Query<(
+        &SimulationPoints,
+        &SurfaceSettings,
+        &SurfaceStatus,
+        &mut PreviousTick,
+    )>,
+) {
+    for (points, settings, status, mut previous) in &mut surfaces {
+        let previous = previous.bypass_change_detection();
+        if settings.transfer == TransferTiming::Interpolated && status.is_ready() {
+            previous.positions.clear();
+            previous.positions.extend(points.iter_positions());
+        } else if !previous.positions.is_empty() {
+            *previous = PreviousTick::default();
         }
     }
 }
