@@ -67,7 +67,18 @@ fn run_scene_in_ecs_with(name: &str, single_threaded: bool) -> (DenseCloud, Scen
         .world()
         .resource::<AssetServer>()
         .load(format!("scenes/{name}"));
-    let entity = app.world_mut().spawn(DeformableSurface::scene(handle)).id();
+    // The dense surface as the last tick left it (drawn a tick behind, as by default, it
+    // would be the second-last's).
+    let entity = app
+        .world_mut()
+        .spawn((
+            DeformableSurface::scene(handle),
+            SurfaceSettings {
+                transfer: TransferTiming::EveryTick,
+                ..default()
+            },
+        ))
+        .id();
     settle(&mut app, &[entity]);
     assert_eq!(status(&app, entity), SurfaceStatus::Ready, "{name}");
     // The tick the plugin steps by is the scene's step, to the bit.
@@ -393,17 +404,15 @@ fn an_interpolated_surface_is_drawn_between_its_last_two_ticks() {
     // One and a half ticks per update: the frames fall half-way between ticks and on them.
     let mut app = create_app(&assets_dir(), TICK);
     app.insert_resource(TimeUpdateStrategy::ManualDuration(TICK * 3 / 2));
-    let surface = app
-        .world_mut()
-        .spawn((
-            floating(1200, 120),
-            SurfaceSettings {
-                transfer: TransferTiming::Interpolated,
-                ..default()
-            },
-            Windy,
-        ))
-        .id();
+    // Drawn between ticks by default.
+    let surface = app.world_mut().spawn((floating(1200, 120), Windy)).id();
+    assert_eq!(
+        app.world()
+            .get::<SurfaceSettings>(surface)
+            .unwrap()
+            .transfer,
+        TransferTiming::Interpolated
+    );
     app.add_systems(FixedUpdate, wind.in_set(PointSpringsSystems::Forces));
     settle(&mut app, &[surface]);
     let mut fractions = Vec::new();
@@ -459,7 +468,16 @@ fn transfer_once_per_frame_when_asked() {
     // Three ticks per update.
     let mut app = create_app(&assets_dir(), TICK);
     app.insert_resource(TimeUpdateStrategy::ManualDuration(TICK * 3));
-    let every_tick = app.world_mut().spawn(floating(1200, 120)).id();
+    let every_tick = app
+        .world_mut()
+        .spawn((
+            floating(1200, 120),
+            SurfaceSettings {
+                transfer: TransferTiming::EveryTick,
+                ..default()
+            },
+        ))
+        .id();
     let per_frame = app
         .world_mut()
         .spawn((

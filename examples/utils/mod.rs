@@ -8,6 +8,10 @@
 //! N — shows the same moment of the simulation on every machine however slow its renderer
 //! or its preparation. Far from tick N a frame takes [`FAST_FORWARD_TICKS`] ticks, so a
 //! software renderer draws a tenth of the frames; the last ones take one tick each.
+//!
+//! `--frame-rate HZ` renders the script at another rate than the ticks': each frame then
+//! advances 1/HZ s, and frame N is the frame at N/HZ s (at 144 Hz most frames fall between
+//! two ticks, at 30 Hz every frame takes two).
 
 use std::path::PathBuf;
 use std::time::Duration;
@@ -39,6 +43,9 @@ pub const FAST_FORWARD_TICKS: u32 = 10;
 /// The fixed tick of the examples: the shipped scenes' step.
 pub const TICK_HZ: f64 = 60.0;
 
+/// The slowest `--frame-rate` (Bevy's virtual clock takes at most 250 ms a frame).
+const MIN_FRAME_RATE: f64 = 5.0;
+
 /// Radians of orbit per pixel of mouse motion.
 const ORBIT_SPEED: f32 = 0.006;
 
@@ -53,7 +60,7 @@ pub struct DemoArgs {
     /// Save a screenshot of the window here, then exit.
     pub screenshot: Option<PathBuf>,
     /// Exit after this many frames once every surface is prepared (with `--screenshot`:
-    /// take it at that frame); time advances one tick per frame.
+    /// take it at that frame); time advances one tick per frame, or 1/`frame_rate` s.
     pub frames: Option<u32>,
     /// Window size, pixels (default [`WINDOW_SIZE`]).
     pub size: Option<(u32, u32)>,
@@ -61,6 +68,10 @@ pub struct DemoArgs {
     pub gizmos: bool,
     /// Leave the live panel out (a clean picture of the scene).
     pub no_panel: bool,
+    /// Frames a second of a scripted run (default: one a tick, [`TICK_HZ`]).
+    pub frame_rate: Option<f64>,
+    /// Draw each tick's state as it ends instead of interpolating between ticks.
+    pub no_interpolation: bool,
 }
 
 impl DemoArgs {
@@ -74,6 +85,13 @@ impl DemoArgs {
                 "--frames" => args.frames = it.next().and_then(|n| n.parse().ok()),
                 "--gizmos" => args.gizmos = true,
                 "--no-panel" => args.no_panel = true,
+                "--no-interpolation" => args.no_interpolation = true,
+                "--frame-rate" => {
+                    args.frame_rate = it
+                        .next()
+                        .and_then(|r| r.parse().ok())
+                        .filter(|r: &f64| r.is_finite() && *r >= MIN_FRAME_RATE);
+                }
                 "--size" => {
                     args.size = it.next().and_then(|s| {
                         let (w, h) = s.split_once('x')?;
@@ -82,12 +100,14 @@ impl DemoArgs {
                 }
                 "-h" | "--help" => {
                     println!(
-                        "options: [FILE] [--screenshot PATH.png] [--frames N] [--size WxH] [--gizmos] [--no-panel]"
+                        "options: [FILE] [--screenshot PATH.png] [--frames N] [--frame-rate HZ] [--size WxH] [--gizmos] [--no-panel] [--no-interpolation]"
                     );
                     println!(
                         "mouse: left-drag pokes and pulls a surface, right-drag orbits, wheel zooms"
                     );
-                    println!("keys: space pauses, G cycles the spring gizmos, R restarts");
+                    println!(
+                        "keys: space pauses, G cycles the spring gizmos, I switches interpolation between ticks, R restarts"
+                    );
                     std::process::exit(0);
                 }
                 other => args.file = Some(PathBuf::from(other)),
@@ -99,6 +119,28 @@ impl DemoArgs {
     /// Whether the run is scripted (fixed time per frame, then exit).
     pub fn scripted(&self) -> bool {
         self.frames.is_some() || self.screenshot.is_some()
+    }
+
+    /// A scripted frame's time: [`TICK_HZ`]'s tick, or the `--frame-rate`'s period (a whole
+    /// number of ticks where the rate divides the ticks', so that those frames land on
+    /// ticks exactly).
+    fn frame_period(&self) -> Duration {
+        let tick = Duration::from_secs_f64(1.0 / TICK_HZ);
+        let Some(rate) = self.frame_rate else {
+            return tick;
+        };
+        let ticks = TICK_HZ / rate;
+        if ticks.fract() == 0.0 {
+            tick * ticks as u32
+        } else {
+            Duration::from_secs_f64(1.0 / rate)
+        }
+    }
+
+    /// Frames a fast-forwarding scripted frame takes: [`FAST_FORWARD_TICKS`] ticks' worth.
+    fn fast_forward_frames(&self) -> u32 {
+        let rate = self.frame_rate.unwrap_or(TICK_HZ);
+        ((f64::from(FAST_FORWARD_TICKS) * rate / TICK_HZ).floor() as u32).max(1)
     }
 }
 
@@ -142,6 +184,9 @@ impl Plugin for DemoPlugin {
             Update,
             (orbit_camera, keys, show_status, screenshot_and_exit),
         );
+        if self.args.no_interpolation {
+            app.add_systems(PostUpdate, draw_ticks_as_they_end);
+        }
         if self.panel && !self.args.no_panel {
             add_panel(app);
         }
@@ -233,6 +278,7 @@ pub fn spawn_camera_and_light(
     commands.spawn((
         DirectionalLight {
             illuminance: 8_000.0,
+            shadow_maps_enabled: true,
             ..default()
         },
         Transform::from_translation(eye + Vec3::new(distance, distance, 0.0))
@@ -295,6 +341,20 @@ fn keys(
         if keyboard.just_pressed(KeyCode::KeyR) {
             *status = SurfaceStatus::Pending;
         }
+        if keyboard.just_pressed(KeyCode::KeyI) {
+            settings.transfer = match settings.transfer {
+                TransferTiming::Interpolated => TransferTiming::EveryTick,
+                _ => TransferTiming::Interpolated,
+            };
+            info!("transfer: {:?}", settings.transfer);
+        }
+    }
+}
+
+/// `--no-interpolation`: new surfaces show each tick's state as it ends.
+fn draw_ticks_as_they_end(mut surfaces: Query<&mut SurfaceSettings, Added<SurfaceSettings>>) {
+    for mut settings in &mut surfaces {
+        settings.transfer = TransferTiming::EveryTick;
     }
 }
 
@@ -384,15 +444,27 @@ fn count_ticks(
 #[derive(Resource, Debug, Default)]
 struct ScriptStarted(bool);
 
+/// A scripted run's frames (of `--frame-rate`'s period) since its start.
+#[derive(Debug, Default)]
+struct FrameCount {
+    /// Frames whose time has passed.
+    done: u32,
+    /// Frames the next time update takes.
+    pending: u32,
+}
+
 #[allow(clippy::too_many_arguments)]
 fn screenshot_and_exit(
     mut commands: Commands,
     args: Res<DemoArgs>,
     ticks: Res<FramesSinceReady>,
+    fixed: Res<Time<Fixed>>,
+    mut virtual_time: ResMut<Time<Virtual>>,
     mut started: ResMut<ScriptStarted>,
     mut clock: ResMut<TimeUpdateStrategy>,
     mut surfaces: Query<(&SurfaceStatus, &mut SurfaceSettings)>,
     mut warmup: Local<u32>,
+    mut frames: Local<FrameCount>,
     mut shot: Local<bool>,
     mut exit: MessageWriter<AppExit>,
 ) {
@@ -429,20 +501,30 @@ fn screenshot_and_exit(
             settings.paused = !running;
         }
         started.0 = running;
+        if running {
+            // The next frame is the script's first.
+            frames.pending = 1;
+            *clock = TimeUpdateStrategy::ManualDuration(args.frame_period());
+        }
         return;
     }
-    let tick = ticks.0.unwrap_or(0);
-    // The next frame's ticks: many while the screenshot is far, then one at a time.
-    let next = if target.saturating_sub(tick) > FAST_FORWARD_TICKS {
-        FAST_FORWARD_TICKS
-    } else {
-        1
-    };
-    *clock = TimeUpdateStrategy::ManualDuration(Duration::from_secs_f64(f64::from(next) / TICK_HZ));
-    if tick < target {
+    // This frame's time update took the frames asked for last frame.
+    frames.done += frames.pending;
+    let left = target.saturating_sub(frames.done);
+    if left > 0 {
+        // The next frame's: many while the screenshot is far, then one at a time.
+        let fast = args.fast_forward_frames();
+        frames.pending = if left > fast { fast } else { 1 };
+        *clock = TimeUpdateStrategy::ManualDuration(args.frame_period() * frames.pending);
         return;
     }
     *shot = true;
+    info!(
+        "frame {}: after tick {}, {:.3} of the way to the next",
+        frames.done,
+        ticks.0.unwrap_or(0),
+        fixed.overstep_fraction()
+    );
     match &args.screenshot {
         Some(path) => {
             commands
@@ -460,10 +542,9 @@ fn screenshot_and_exit(
                         }
                     },
                 );
-            // No more ticks while the capture is under way.
-            for (_, mut settings) in &mut surfaces {
-                settings.paused = true;
-            }
+            // Time stands still while the capture is under way (it takes a frame or two):
+            // no more ticks, and the frame's place between two ticks stays.
+            virtual_time.pause();
         }
         None => {
             exit.write(AppExit::Success);

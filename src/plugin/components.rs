@@ -174,8 +174,9 @@ impl PreparationProgress {
 /// When the dense surface follows the simulation.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Reflect)]
 pub enum TransferTiming {
-    /// After every fixed tick that moved the simulation points.
-    #[default]
+    /// After every fixed tick that moved the simulation points: the drawn surface is the
+    /// simulation's state after the last tick (it moves in steps when frames outnumber
+    /// ticks, or do not line up with them).
     EveryTick,
     /// Once per rendered frame (in `PostUpdate`), if a tick moved the points: cheaper when
     /// ticks outnumber frames. Resampling still happens on its tick.
@@ -186,11 +187,13 @@ pub enum TransferTiming {
     /// smoothly at any frame rate (the drawn surface is then up to a tick behind the
     /// simulation, as interpolated rigid bodies are). The transfer is linear in the
     /// points' positions, so the drawn positions are exactly the blend of the two ticks'.
+    /// The default.
+    #[default]
     Interpolated,
 }
 
 /// A surface's simulation points where the last tick started, for
-/// [`TransferTiming::Interpolated`] (kept only for surfaces that ask for it).
+/// [`TransferTiming::Interpolated`] (kept only for surfaces drawn that way).
 #[derive(Component, Debug, Clone, Default)]
 pub struct PreviousTick {
     /// The positions at the start of the last tick (the surface's own coordinates); empty

@@ -17,7 +17,7 @@ use std::collections::HashMap;
 use std::sync::Arc;
 use std::time::Instant;
 
-use bevy::asset::{AssetPath, RenderAssetUsages, embedded_asset, embedded_path};
+use bevy::asset::{AssetEventSystems, AssetPath, RenderAssetUsages, embedded_asset, embedded_path};
 use bevy::camera::visibility::NoFrustumCulling;
 use bevy::ecs::system::SystemParam;
 use bevy::material::OpaqueRendererMethod;
@@ -73,11 +73,15 @@ impl Plugin for SurfelRenderPlugin {
                     ..default()
                 },
             )
+            // Before the assets' events are sent: the buffer written this frame is drawn this
+            // frame (after them, its `Modified` event would wait a frame, and the surfels be
+            // drawn a frame behind the meshes).
             .add_systems(
                 PostUpdate,
                 (attach_surfels, upload_surfels)
                     .chain()
-                    .after(PointSpringsSystems::Transfer),
+                    .after(PointSpringsSystems::Transfer)
+                    .before(AssetEventSystems),
             )
             .add_systems(Update, draw_gizmos);
         super::view::add_systems(app);
@@ -104,18 +108,11 @@ impl MaterialExtension for SurfelExtension {
         surfel_shader()
     }
 
+    // The prepass (and with it the shadow maps) runs the same vertex shader, so surfels
+    // cast the shadows of their discs, and receive shadows (`NotShadowCaster` and
+    // `NotShadowReceiver` on the surface are honoured as for any mesh).
     fn prepass_vertex_shader() -> ShaderRef {
         surfel_shader()
-    }
-
-    // Shadows and the depth prepass would need the prepass pipeline of the same shader to
-    // be exercised; surfels receive shadows but cast none.
-    fn enable_prepass() -> bool {
-        false
-    }
-
-    fn enable_shadows() -> bool {
-        false
     }
 
     fn specialize(
@@ -124,7 +121,7 @@ impl MaterialExtension for SurfelExtension {
         _layout: &MeshVertexBufferLayoutRef,
         _key: MaterialExtensionKey<Self>,
     ) -> Result<(), SpecializedMeshPipelineError> {
-        // Without a prepass of ours, never read the view's prepass normals.
+        // The main pass computes its normals; never read the view's prepass normals.
         if let Some(fragment) = descriptor.fragment.as_mut() {
             fragment.shader_defs.retain(
                 |d| !matches!(d, ShaderDefVal::Bool(name, _) if name == "LOAD_PREPASS_NORMALS"),
