@@ -842,3 +842,53 @@ fn bench_crowd_steps_every_surface_with_the_tolerance_asked_for() {
         assert_eq!(out.status.code(), Some(2), "{bad:?}");
     }
 }
+
+#[test]
+fn prepare_writes_a_prepared_file_that_reads_back() {
+    use bevy_point_springs::core::pipeline::SurfaceConfig;
+    use bevy_point_springs::core::pipeline::prepared::{SourceFingerprint, read_prepared};
+    use bevy_point_springs::core::simplify::SimplifyConfig;
+    let out = scratch("kitten.psprep");
+    let kitten = asset("kitten.off");
+    let report = run_json(&[
+        "prepare",
+        kitten.to_str().unwrap(),
+        "--target",
+        "300",
+        "-o",
+        out.to_str().unwrap(),
+        "--json",
+    ]);
+    assert_eq!(report["dense_points"], 5210);
+    assert_eq!(report["sim_points"].as_u64(), Some(300));
+    assert!(report["bytes"].as_u64().unwrap() > 100_000);
+    assert!(report["ready_share"].as_f64().unwrap() > 0.0);
+    // The file is the preparation of the kitten with those settings.
+    let config = SurfaceConfig {
+        simplify: SimplifyConfig::target(300),
+        ..SurfaceConfig::default()
+    };
+    let cloud = read_cloud(&kitten, None).unwrap();
+    let surface = read_prepared(&out, SourceFingerprint::of(&cloud, &config)).unwrap();
+    assert_eq!(surface.network.len(), 300);
+    assert!(
+        read_prepared(
+            &out,
+            SourceFingerprint::of(&cloud, &SurfaceConfig::default())
+        )
+        .is_err()
+    );
+    // Settings that are not a surface's: bad input.
+    let settings = scratch("bad-settings.ron");
+    std::fs::write(&settings, "(simplify: (target: Some(-3)))").unwrap();
+    let bad = run(&[
+        "prepare",
+        kitten.to_str().unwrap(),
+        "--settings",
+        settings.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(bad.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("bad-settings.ron"));
+}

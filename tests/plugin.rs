@@ -10,6 +10,7 @@ use bevy_point_springs::core::cloud::shapes;
 use bevy_point_springs::core::pipeline::SurfaceConfig;
 use bevy_point_springs::core::scene::Scene;
 use bevy_point_springs::core::simplify::SimplifyConfig;
+use bevy_point_springs::plugin::PreparedFileOutcome;
 use bevy_point_springs::prelude::*;
 
 #[path = "support/plugin_app.rs"]
@@ -54,6 +55,15 @@ fn run_scene_in_ecs(name: &str) -> (DenseCloud, Scene, App, Entity) {
 
 /// [`run_scene_in_ecs`], with the fixed schedule on the single-threaded executor when asked.
 fn run_scene_in_ecs_with(name: &str, single_threaded: bool) -> (DenseCloud, Scene, App, Entity) {
+    run_scene_in_ecs_through(name, single_threaded, None)
+}
+
+/// [`run_scene_in_ecs_with`], the surface kept in a prepared file when one is given.
+fn run_scene_in_ecs_through(
+    name: &str,
+    single_threaded: bool,
+    prepared_file: Option<&std::path::Path>,
+) -> (DenseCloud, Scene, App, Entity) {
     let (scene, _) = Scene::load(&assets_dir().join("scenes").join(name)).unwrap();
     let tick = Duration::from_secs_f64(f64::from(scene.dt));
     let mut app = create_app_with(&assets_dir(), tick, |app| {
@@ -72,7 +82,10 @@ fn run_scene_in_ecs_with(name: &str, single_threaded: bool) -> (DenseCloud, Scen
     let entity = app
         .world_mut()
         .spawn((
-            DeformableSurface::scene(handle),
+            DeformableSurface {
+                prepared_file: prepared_file.map(|p| p.to_owned()),
+                ..DeformableSurface::scene(handle)
+            },
             SurfaceSettings {
                 transfer: TransferTiming::EveryTick,
                 ..default()
@@ -722,4 +735,110 @@ fn a_pointer_press_drag_and_release_grab_the_surface() {
     );
     let grabs = app.world().resource::<Grabs>();
     assert_eq!((grabs.len(), grabs.get(0)), (1, None));
+}
+
+/// The prepared file a surface went through.
+fn file_outcome(app: &App, e: Entity) -> PreparedFileOutcome {
+    app.world().get::<PreparedFileOutcome>(e).cloned().unwrap()
+}
+
+#[test]
+fn a_surface_is_read_from_its_prepared_file_and_runs_as_if_prepared() {
+    use bevy_point_springs::core::cloud::io::read_cloud;
+    use bevy_point_springs::core::pipeline::prepared::PreparedFileError;
+    let dir = std::env::temp_dir().join(format!("bps-prepared-plugin-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("kitten.psprep");
+    let kitten = read_cloud(&assets_dir().join("kitten.off"), None).unwrap();
+    let config = SurfaceConfig {
+        simplify: SimplifyConfig::target(300),
+        ..SurfaceConfig::default()
+    };
+    // A fresh app: the kitten falls for half a second; the state as bits.
+    let run = |cloud: &bevy_point_springs::core::PointCloud| {
+        let mut app = create_app(&assets_dir(), TICK);
+        let surface = DeformableSurface::cloud(cloud.clone(), config).with_prepared_file(&file);
+        let e = app.world_mut().spawn(surface).id();
+        settle(&mut app, &[e]);
+        assert_eq!(status(&app, e), SurfaceStatus::Ready);
+        for _ in 0..30 {
+            app.update();
+        }
+        let world = app.world();
+        let points = bits(&world.get::<SimulationPoints>(e).unwrap().positions());
+        let dense = bits(world.get::<DenseSurface>(e).unwrap().positions());
+        (file_outcome(&app, e), points, dense)
+    };
+    // No file yet: prepared, and the file written.
+    let (first, points, dense) = run(&kitten);
+    assert!(
+        matches!(first, PreparedFileOutcome::Written { refused: None }),
+        "{first:?}"
+    );
+    // The file there: read, and the run the same to the bit.
+    let (second, points_again, dense_again) = run(&kitten);
+    assert!(matches!(second, PreparedFileOutcome::Read), "{second:?}");
+    assert!(points_again == points && dense_again == dense);
+    // Another cloud (one coordinate one float step off): refused, prepared, written anew.
+    let (mut positions, normals) = kitten.clone().into_parts();
+    positions[0].y = f32::from_bits(positions[0].y.to_bits() + 1);
+    let nudged = bevy_point_springs::core::PointCloud::new(positions, normals).unwrap();
+    let (third, ..) = run(&nudged);
+    match third {
+        PreparedFileOutcome::Written {
+            refused: Some(why), ..
+        } => assert!(
+            matches!(*why, PreparedFileError::OtherSource { .. }),
+            "{why}"
+        ),
+        other => panic!("expected a refusal, got {other:?}"),
+    }
+    // A damaged file: refused, and the surface prepared all the same.
+    std::fs::write(&file, b"PSPREP\x00\x01 but nothing else").unwrap();
+    let (fourth, points_damaged, _) = run(&kitten);
+    match fourth {
+        PreparedFileOutcome::Written {
+            refused: Some(why), ..
+        } => assert!(matches!(*why, PreparedFileError::Damaged(_)), "{why}"),
+        other => panic!("expected a refusal, got {other:?}"),
+    }
+    assert!(points_damaged == points);
+    // A file that cannot be written: the surface runs, and the outcome says why.
+    {
+        let mut app = create_app(&assets_dir(), TICK);
+        let surface = DeformableSurface::cloud(kitten.clone(), config)
+            .with_prepared_file(dir.join("no such folder").join("k.psprep"));
+        let e = app.world_mut().spawn(surface).id();
+        settle(&mut app, &[e]);
+        assert_eq!(status(&app, e), SurfaceStatus::Ready);
+        let outcome = file_outcome(&app, e);
+        assert!(
+            matches!(
+                outcome,
+                PreparedFileOutcome::NotWritten { refused: None, .. }
+            ),
+            "{outcome:?}"
+        );
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn a_scene_read_from_its_prepared_file_runs_bit_for_bit_as_prepared() {
+    let dir = std::env::temp_dir().join(format!("bps-prepared-scene-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("hat.psprep");
+    let (prepared, ..) = run_scene_in_ecs("hat.ron");
+    let (written, _, app, e) = run_scene_in_ecs_through("hat.ron", false, Some(&file));
+    assert!(matches!(
+        file_outcome(&app, e),
+        PreparedFileOutcome::Written { refused: None }
+    ));
+    let (read, _, app, e) = run_scene_in_ecs_through("hat.ron", false, Some(&file));
+    assert!(matches!(file_outcome(&app, e), PreparedFileOutcome::Read));
+    for dense in [&written, &read] {
+        assert!(bits(dense.positions()) == bits(prepared.positions()));
+        assert!(bits(dense.normals()) == bits(prepared.normals()));
+    }
+    let _ = std::fs::remove_dir_all(&dir);
 }

@@ -19,6 +19,7 @@
 //! | [`DenseSurface`] | rest cloud, transfer coefficients, deformed positions and normals | read them (drawing, export) |
 //! | [`SceneTimeline`] | a scene's pulls on their schedule (scenes only) | read its step |
 
+use std::path::PathBuf;
 use std::sync::Arc;
 
 use bevy::ecs::query::QueryData;
@@ -27,6 +28,7 @@ use bevy::reflect::reflect_remote;
 
 use crate::core::PointCloud;
 use crate::core::network::SpringNetwork;
+use crate::core::pipeline::prepared::PreparedFileError;
 use crate::core::pipeline::{DenseCloud, Stage, SurfaceConfig};
 use crate::core::scene::{Scene, Timeline};
 use crate::core::solver::{
@@ -90,6 +92,8 @@ pub struct DeformableSurface {
     /// How it is prepared and simulated (a scene's own settings replace it once the scene
     /// has loaded).
     pub config: SurfaceConfig,
+    /// A file that keeps the preparation (see [`Self::with_prepared_file`]).
+    pub prepared_file: Option<PathBuf>,
 }
 
 impl DeformableSurface {
@@ -98,6 +102,7 @@ impl DeformableSurface {
         Self {
             source: SurfaceSource::Scene(scene),
             config: SurfaceConfig::default(),
+            prepared_file: None,
         }
     }
 
@@ -106,6 +111,7 @@ impl DeformableSurface {
         Self {
             source: SurfaceSource::CloudAsset(cloud),
             config,
+            prepared_file: None,
         }
     }
 
@@ -114,6 +120,7 @@ impl DeformableSurface {
         Self {
             source: SurfaceSource::Cloud(Arc::new(cloud)),
             config,
+            prepared_file: None,
         }
     }
 
@@ -122,8 +129,42 @@ impl DeformableSurface {
         Self {
             config: scene.surface_config(),
             source: SurfaceSource::SceneData(Arc::new((scene, cloud))),
+            prepared_file: None,
         }
     }
+
+    /// Keeps the surface's preparation in `path` (a path of the file system; `.psprep` by
+    /// custom): where the file holds the preparation of this very source (the cloud, bit for
+    /// bit, with these settings, and a scene's pins and pulls) by this version of the
+    /// plugin, the surface is read from it instead of being prepared, in a small part of the
+    /// time; otherwise it is prepared and the file written (again), and the reason it was
+    /// not used is logged. [`PreparedFileOutcome`] says which happened. `point-springs
+    /// prepare` writes such files ahead of time.
+    pub fn with_prepared_file(mut self, path: impl Into<PathBuf>) -> Self {
+        self.prepared_file = Some(path.into());
+        self
+    }
+}
+
+/// What became of a surface's [prepared file](DeformableSurface::with_prepared_file) at its
+/// last preparation (inserted with the prepared surface).
+#[derive(Component, Debug, Clone)]
+pub enum PreparedFileOutcome {
+    /// The surface was read from the file: nothing was prepared.
+    Read,
+    /// The surface was prepared and the file written: there was none, or it was refused
+    /// (`refused` says why: another source or version, or a damaged file).
+    Written {
+        /// Why the file there was not used (none: there was no file).
+        refused: Option<Arc<PreparedFileError>>,
+    },
+    /// The surface was prepared, but the file could not be written.
+    NotWritten {
+        /// Why the file there was not used (none: there was no file).
+        refused: Option<Arc<PreparedFileError>>,
+        /// Why it could not be written.
+        error: Arc<PreparedFileError>,
+    },
 }
 
 /// Where a [`DeformableSurface`] is. Set it back to [`SurfaceStatus::Pending`] to prepare

@@ -60,10 +60,10 @@ pub use attach::{
 };
 pub use components::{
     DEFAULT_SLEEP_AFTER, DEFAULT_SLEEP_SPEED, DeformableSurface, DenseSurface, PreparationProgress,
-    PreviousTick, SceneTimeline, SimulationPoints, SleepSettings, StepOnce, SurfaceAnchors,
-    SurfaceForces, SurfaceInView, SurfaceMasses, SurfaceMaterial, SurfaceNetwork, SurfacePressure,
-    SurfaceSettings, SurfaceSleep, SurfaceSource, SurfaceSprings, SurfaceStatus, SurfaceStepper,
-    SurfaceTimings, SurfaceWork, TransferTiming,
+    PreparedFileOutcome, PreviousTick, SceneTimeline, SimulationPoints, SleepSettings, StepOnce,
+    SurfaceAnchors, SurfaceForces, SurfaceInView, SurfaceMasses, SurfaceMaterial, SurfaceNetwork,
+    SurfacePressure, SurfaceSettings, SurfaceSleep, SurfaceSource, SurfaceSprings, SurfaceStatus,
+    SurfaceStepper, SurfaceTimings, SurfaceWork, TransferTiming,
 };
 #[cfg(feature = "rapier")]
 pub use contact::{

@@ -17,6 +17,7 @@
 //! take cores from the game's frames while a surface is being prepared.
 
 use std::ops::ControlFlow;
+use std::path::Path;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 
@@ -26,15 +27,16 @@ use bevy::tasks::futures::check_ready;
 use bevy::tasks::{AsyncComputeTaskPool, Task};
 
 use crate::core::PointCloud;
+use crate::core::pipeline::prepared::{SourceFingerprint, read_prepared, write_prepared};
 use crate::core::pipeline::{PreparedSurface, Progress, Stage, SurfaceConfig, prepare_surface};
 use crate::core::scene::{Scene, Timeline};
 use crate::core::solver::ExternalForces;
 
 use super::assets::{CloudAsset, SceneAsset};
 use super::components::{
-    DeformableSurface, DenseSurface, PreparationProgress, SceneTimeline, SimulationPoints,
-    SurfaceAnchors, SurfaceForces, SurfaceMasses, SurfaceMaterial, SurfaceNetwork, SurfacePressure,
-    SurfaceSource, SurfaceSprings, SurfaceStatus, SurfaceStepper,
+    DeformableSurface, DenseSurface, PreparationProgress, PreparedFileOutcome, SceneTimeline,
+    SimulationPoints, SurfaceAnchors, SurfaceForces, SurfaceMasses, SurfaceMaterial,
+    SurfaceNetwork, SurfacePressure, SurfaceSource, SurfaceSprings, SurfaceStatus, SurfaceStepper,
 };
 use super::grab::Grabs;
 use super::save::SurfaceBaked;
@@ -82,6 +84,8 @@ pub struct PrepareAgainFailed(pub String);
 struct Prepared {
     surface: PreparedSurface,
     timeline: Option<Timeline>,
+    /// What became of the prepared file, when the surface has one.
+    file: Option<PreparedFileOutcome>,
 }
 
 /// Progress shared between a preparation task and the app.
@@ -262,9 +266,10 @@ pub(crate) fn start_preparation(
         }
         let shared = Arc::new(Shared::default());
         let task_shared = shared.clone();
+        let file = surface.prepared_file.clone();
         let task = AsyncComputeTaskPool::get().spawn(async move {
             pool.0
-                .install(|| prepare(cloud, scene, &config, &task_shared))
+                .install(|| prepare(cloud, scene, &config, file.as_deref(), &task_shared))
         });
         commands.entity(entity).insert((
             PreparationTask {
@@ -301,28 +306,81 @@ fn refuse(
 }
 
 /// The job itself: the scene's preparation (pins and timeline included) or the plain
-/// pipeline.
+/// pipeline, through the prepared file when the surface has one.
 fn prepare(
     cloud: PointCloud,
     scene: Option<Scene>,
     config: &SurfaceConfig,
+    file: Option<&Path>,
     shared: &Shared,
 ) -> Result<Prepared, String> {
     let mut progress = |p: Progress| shared.report(p);
+    // What the file must have been prepared from: the cloud, the settings, and the scene.
+    let source = file.map(|_| {
+        let scene_bytes = scene
+            .as_ref()
+            .and_then(|s| postcard::to_stdvec(s).ok())
+            .unwrap_or_default();
+        SourceFingerprint::with_extra(&cloud, config, &scene_bytes)
+    });
+    let mut outcome = None;
+    let surface = match (file, source) {
+        (Some(path), Some(source)) => match read_prepared(path, source) {
+            Ok(surface) => {
+                info!("point-springs: {} read, not prepared", path.display());
+                outcome = Some(PreparedFileOutcome::Read);
+                surface
+            }
+            Err(refused) => {
+                let refused = (!refused.is_missing()).then(|| {
+                    warn!(
+                        "point-springs: {} not used ({refused}): preparing from the source",
+                        path.display()
+                    );
+                    Arc::new(refused)
+                });
+                let surface = prepare_unpinned(cloud, scene.as_ref(), config, &mut progress)?;
+                outcome = Some(match write_prepared(path, &surface, source) {
+                    Ok(()) => PreparedFileOutcome::Written { refused },
+                    Err(e) => {
+                        warn!("point-springs: cannot keep the preparation: {e}");
+                        PreparedFileOutcome::NotWritten {
+                            refused,
+                            error: Arc::new(e),
+                        }
+                    }
+                });
+                surface
+            }
+        },
+        _ => prepare_unpinned(cloud, scene.as_ref(), config, &mut progress)?,
+    };
+    let (surface, timeline) = match &scene {
+        Some(scene) => scene
+            .pin_prepared(surface)
+            .map(|(s, t)| (s, Some(t)))
+            .map_err(|e| e.to_string())?,
+        None => (surface, None),
+    };
+    Ok(Prepared {
+        surface,
+        timeline,
+        file: outcome,
+    })
+}
+
+/// The surface prepared, before a scene's pins hold it.
+fn prepare_unpinned(
+    cloud: PointCloud,
+    scene: Option<&Scene>,
+    config: &SurfaceConfig,
+    progress: &mut dyn FnMut(Progress) -> ControlFlow<()>,
+) -> Result<PreparedSurface, String> {
     match scene {
         Some(scene) => scene
-            .prepare_cloud(cloud, &mut progress)
-            .map(|(surface, timeline)| Prepared {
-                surface,
-                timeline: Some(timeline),
-            })
+            .prepare_unpinned(cloud, progress)
             .map_err(|e| e.to_string()),
-        None => prepare_surface(cloud, config, &mut progress)
-            .map(|surface| Prepared {
-                surface,
-                timeline: None,
-            })
-            .map_err(|e| e.to_string()),
+        None => prepare_surface(cloud, config, progress).map_err(|e| e.to_string()),
     }
 }
 
@@ -409,6 +467,10 @@ fn insert_simulation(entity: &mut EntityCommands, prepared: Prepared) {
     match prepared.timeline {
         Some(timeline) => entity.insert(SceneTimeline(timeline)),
         None => entity.remove::<SceneTimeline>(),
+    };
+    match prepared.file {
+        Some(outcome) => entity.insert(outcome),
+        None => entity.remove::<PreparedFileOutcome>(),
     };
     entity.remove::<SurfaceBaked>();
 }

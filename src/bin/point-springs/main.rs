@@ -5,6 +5,7 @@
 //! point-springs normals FILE -o OUT.ply [-k K] [--format F] [--reestimate] [--ascii] [--json]
 //! point-springs simplify FILE (--target N | --max-diameter D) [-k K] [--density RHO]
 //!                        [--denoise auto|on|off] [-o OUT.ply] [--format F] [--ascii] [--json]
+//! point-springs prepare FILE [--settings SURFACE.ron] [--target N] [-o OUT.psprep] [--json]
 //! point-springs run SCENE.ron [-o DEFORMED.ply] [--png PICTURE.png] [--view X,Y,Z] [--up X,Y,Z]
 //!                        [--ascii] [--json]
 //! point-springs render FILE... -o PICTURE.png [--view X,Y,Z] [--up X,Y,Z] [--width W]
@@ -36,6 +37,7 @@ mod generate;
 mod info;
 mod normals;
 mod picture;
+mod prepare;
 mod render;
 mod report;
 mod run;
@@ -70,6 +72,9 @@ enum Command {
     Simplify(simplify::Args),
     /// Time core stages against straightforward or literal implementations.
     Bench(bench::Args),
+    /// Prepare a cloud once (normals, simplification, springs, transfer) and save the result
+    /// as a prepared file, which the plugin reads instead of preparing again.
+    Prepare(prepare::Args),
     /// Run a scene file headless: load, simplify, simulate, transfer the motion back to
     /// every dense point; write the deformed surface (positions and normals).
     Run(run::Args),
@@ -86,6 +91,7 @@ fn main() -> ExitCode {
         Command::Normals(args) => normals::run(&args),
         Command::Simplify(args) => simplify::run(&args),
         Command::Bench(args) => bench::run(args),
+        Command::Prepare(args) => prepare::run(&args),
         Command::Run(args) => run::run(&args),
         Command::Render(args) => render::run(&args),
         Command::Generate(args) => generate::run(&args),

@@ -133,7 +133,7 @@ pub enum NetworkError {
 }
 
 /// A spring between two simulation points.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Spring {
     /// First point (the smaller index).
     pub a: u32,
@@ -144,7 +144,7 @@ pub struct Spring {
 }
 
 /// Counts and measures of a network.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize, serde::Deserialize)]
 pub struct NetworkReport {
     /// Simulation points.
     pub points: usize,
@@ -211,7 +211,7 @@ pub struct NetworkReport {
 }
 
 /// Simulation points with their springs and masses: the rest state of a deformable surface.
-#[derive(Debug, Clone, PartialEq, Default)]
+#[derive(Debug, Clone, PartialEq, Default, serde::Serialize, serde::Deserialize)]
 pub struct SpringNetwork {
     /// Rest positions: the points the network was built on, then any dense points added to
     /// fill holes ([`NetworkReport::filling_points`]).
@@ -239,6 +239,60 @@ pub struct SpringNetwork {
 }
 
 impl SpringNetwork {
+    /// Checks what every use of a network relies on: one position, normal, mass and
+    /// boundary flag per point, all finite (masses positive), springs and triangles between
+    /// distinct points that exist, and rings that index the points in order. A network read
+    /// from a file is checked so before it is used; one the pipeline built passes.
+    pub fn check(&self) -> Result<(), String> {
+        let n = self.positions.len();
+        if n == 0 {
+            return Err("a network without points".into());
+        }
+        if self.normals.len() != n || self.masses.len() != n || self.boundary.len() != n {
+            return Err(format!(
+                "{n} points but {} normals, {} masses, {} boundary flags",
+                self.normals.len(),
+                self.masses.len(),
+                self.boundary.len()
+            ));
+        }
+        if !self
+            .positions
+            .iter()
+            .chain(&self.normals)
+            .all(|p| p.is_finite())
+        {
+            return Err("a position or normal is not finite".into());
+        }
+        if !self.masses.iter().all(|m| m.is_finite() && *m > 0.0) {
+            return Err("a mass is not finite and positive".into());
+        }
+        let point = |i: u32| (i as usize) < n;
+        for s in self.stretch.iter().chain(&self.bend) {
+            let ends = point(s.a) && point(s.b) && s.a != s.b;
+            if !(ends && s.rest_length.is_finite() && s.rest_length >= 0.0) {
+                return Err(format!("a spring {}–{} ({})", s.a, s.b, s.rest_length));
+            }
+        }
+        for &[a, b, c] in &self.triangles {
+            if !(point(a) && point(b) && point(c)) || a == b || b == c || a == c {
+                return Err(format!("a triangle {a}, {b}, {c}"));
+            }
+        }
+        let offsets = &self.ring_offsets;
+        if offsets.len() != n + 1
+            || offsets.first() != Some(&0)
+            || offsets.windows(2).any(|w| w[0] > w[1])
+            || offsets.last().map(|&l| l as usize) != Some(self.ring_indices.len())
+        {
+            return Err("ring offsets out of order".into());
+        }
+        if !self.ring_indices.iter().all(|&i| point(i)) {
+            return Err("a ring names a point that does not exist".into());
+        }
+        Ok(())
+    }
+
     /// Rest length of spring `i`, counting the stretch springs first and then the bend
     /// springs (the order of the solver's [`Springs`](crate::core::solver::Springs)).
     ///

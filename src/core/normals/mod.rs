@@ -57,7 +57,7 @@ pub enum NormalsError {
 }
 
 /// Where a cloud's normals came from.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum NormalSource {
     /// The file's own normals (normalised).
     File,
@@ -84,7 +84,7 @@ pub const INCONSISTENT_NORMALS: f32 = 0.3;
 pub const CONSISTENCY_SAMPLE: usize = 20_000;
 
 /// What [`orient_normals`] did.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
 pub struct OrientationReport {
     /// Connected components of the symmetrised k-NN graph.
     pub components: usize,

@@ -33,6 +33,7 @@
 
 mod bake;
 mod dense;
+pub mod prepared;
 
 pub use bake::{BakeParts, bake};
 pub use dense::{DenseCloud, DenseRest, DenseState, ExportError, FrameParts};
@@ -352,30 +353,51 @@ pub fn prepare_surface_holding(
     network.share_dense_area(positions, normals, &areas, config.material.density)?;
 
     report(Stage::Transfer, 0.0)?;
-    let mut solver = Solver::from_network(&network, &config.material, config.solver)?;
-    if let Some(stiffness) = config.pressure {
-        let open = network.report.boundary_points;
-        if open > 0 {
-            return Err(PrepareError::Invalid(format!(
-                "pressure needs a closed surface, but the network has {open} boundary points"
-            )));
-        }
-        solver.pressure = Some(Pressure::new(
-            network.triangles.clone(),
-            &solver.points,
-            stiffness,
-        )?);
-    }
     let transfer = Transfer::new(positions, normals, &network.positions, config.transfer)?;
-    let dense = DenseCloud::new(transfer, config.resample);
+    let prepared = PreparedSurface::from_parts(*config, normal_source, network, transfer)?;
     report(Stage::Transfer, 1.0)?;
-    Ok(PreparedSurface {
-        config: *config,
-        normal_source,
-        network,
-        solver,
-        dense,
-    })
+    Ok(prepared)
+}
+
+impl PreparedSurface {
+    /// The surface from its prepared parts (the pipeline's last step, and what a
+    /// [prepared file](prepared) holds): the solver over `network` with `config`'s material
+    /// and settings (gas inside where `config` asks), and the dense cloud following it by
+    /// `transfer`.
+    pub fn from_parts(
+        config: SurfaceConfig,
+        normal_source: NormalSource,
+        network: SpringNetwork,
+        transfer: Transfer,
+    ) -> Result<Self, PrepareError> {
+        if transfer.simulation_rest() != network.positions.as_slice() {
+            return Err(PrepareError::Invalid(
+                "the transfer follows other simulation points than the network's".into(),
+            ));
+        }
+        let mut solver = Solver::from_network(&network, &config.material, config.solver)?;
+        if let Some(stiffness) = config.pressure {
+            let open = network.report.boundary_points;
+            if open > 0 {
+                return Err(PrepareError::Invalid(format!(
+                    "pressure needs a closed surface, but the network has {open} boundary points"
+                )));
+            }
+            solver.pressure = Some(Pressure::new(
+                network.triangles.clone(),
+                &solver.points,
+                stiffness,
+            )?);
+        }
+        let dense = DenseCloud::new(transfer, config.resample);
+        Ok(Self {
+            config,
+            normal_source,
+            network,
+            solver,
+            dense,
+        })
+    }
 }
 
 /// Where the stage after `stage` starts (1 after the last).

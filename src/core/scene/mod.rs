@@ -409,14 +409,42 @@ impl Scene {
         cloud: PointCloud,
         progress: &mut dyn FnMut(Progress) -> ControlFlow<()>,
     ) -> Result<(PreparedSurface, Timeline), SceneError> {
+        let surface = self.prepare_unpinned(cloud, progress)?;
+        self.pin_prepared(surface)
+    }
+
+    /// The first half of [`Self::prepare_cloud`]: the surface prepared for the scene's pins
+    /// (§3 keeps their edges) but not pinned yet, which is what a
+    /// [prepared file](crate::core::pipeline::prepared) holds.
+    pub fn prepare_unpinned(
+        &self,
+        cloud: PointCloud,
+        progress: &mut dyn FnMut(Progress) -> ControlFlow<()>,
+    ) -> Result<PreparedSurface, SceneError> {
         self.validate()?;
         if self.error_budget.is_some() {
             let (scene, _) = self.resolve_budget(&cloud)?;
-            return scene.prepare_cloud(cloud, progress);
+            return scene.prepare_unpinned(cloud, progress);
         }
         let pins = &self.pins;
         let held = |p: Vec3| pins.iter().any(|r| r.contains(p));
-        let mut surface = prepare_surface_holding(cloud, &self.surface_config(), &held, progress)?;
+        Ok(prepare_surface_holding(
+            cloud,
+            &self.surface_config(),
+            &held,
+            progress,
+        )?)
+    }
+
+    /// The second half of [`Self::prepare_cloud`]: pins the points of a surface prepared by
+    /// [`Self::prepare_unpinned`] (or read from its prepared file) and makes the timeline of
+    /// the scene's pulls.
+    pub fn pin_prepared(
+        &self,
+        mut surface: PreparedSurface,
+    ) -> Result<(PreparedSurface, Timeline), SceneError> {
+        let pins = &self.pins;
+        let held = |p: Vec3| pins.iter().any(|r| r.contains(p));
         let solver = &mut surface.solver;
         pin_regions(
             &self.pins,

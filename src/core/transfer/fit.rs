@@ -8,7 +8,7 @@ use super::pins::{PIN_BLEND, PIN_HOLD};
 use super::*;
 
 /// Kinds of fit.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub(crate) enum Fit {
     Full,
     Plane,
@@ -16,7 +16,7 @@ pub(crate) enum Fit {
 }
 
 /// What a row's fit came out as.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub(crate) struct RowKind {
     pub(crate) fit: Fit,
     /// The fit does not give back the rest surface (see [`reproduces_rest`]).

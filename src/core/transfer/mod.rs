@@ -291,7 +291,7 @@ impl NeighbourIndex for u32 {
 }
 
 /// The simulation points each dense point follows, k a row.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub(crate) enum Neighbours {
     /// At most [`NARROW_INDEX_LIMIT`] simulation points.
     Narrow(Vec<u16>),
@@ -300,7 +300,7 @@ pub(crate) enum Neighbours {
 }
 
 /// Precomputed transfer coefficients from simulation points to dense points.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct Transfer {
     pub(crate) config: TransferConfig,
     /// Neighbours per dense point (k, or all simulation points when there are fewer).
@@ -395,6 +395,61 @@ pub fn tangent_frame(n: Vec3) -> (Vec3, Vec3) {
 }
 
 impl Transfer {
+    /// Checks what a frame relies on: rows, normals, kinds and coefficients for every dense
+    /// point, neighbours that exist, residual rows in order and as the kinds say, all
+    /// numbers finite. A transfer read from a file is checked so before it is used; one
+    /// [`Transfer::new`] built passes.
+    pub fn check_parts(&self) -> Result<(), String> {
+        let (n, m) = (self.rest.len(), self.sim_rest.len());
+        if m == 0 || self.k == 0 || self.k != self.config.k.min(m) {
+            return Err(format!("{m} simulation points, k = {}", self.k));
+        }
+        if self.normals.len() != n || self.kinds.len() != n {
+            return Err(format!(
+                "{n} dense points but {} normals and {} row kinds",
+                self.normals.len(),
+                self.kinds.len()
+            ));
+        }
+        let finite = self
+            .rest
+            .iter()
+            .chain(&self.normals)
+            .chain(&self.sim_rest)
+            .all(|p| p.is_finite());
+        if !finite || !self.coefficients.iter().all(|c| c.is_finite()) {
+            return Err("a position, normal or coefficient is not finite".into());
+        }
+        if self.coefficients.len() != n * row_stride(self.k) {
+            return Err(format!(
+                "{} coefficients for {n} rows",
+                self.coefficients.len()
+            ));
+        }
+        let in_range = match &self.neighbours {
+            Neighbours::Narrow(v) if m <= NARROW_INDEX_LIMIT => {
+                v.len() == n * self.k && v.iter().all(|&j| usize::from(j) < m)
+            }
+            Neighbours::Wide(v) if m > NARROW_INDEX_LIMIT => {
+                v.len() == n * self.k && v.iter().all(|&j| (j as usize) < m)
+            }
+            _ => false,
+        };
+        if !in_range {
+            return Err("neighbours missing or out of range".into());
+        }
+        let residual = (0..n).filter(|&i| self.kinds[i].residual);
+        if !residual.eq(self.residual_rows.iter().copied()) {
+            return Err("the residual rows are not those the row kinds name".into());
+        }
+        if !(self.pins.simulation.is_empty() || self.pins.simulation.len() == m)
+            || self.pins.dense.len() > n
+        {
+            return Err("pins for points that do not exist".into());
+        }
+        Ok(())
+    }
+
     /// Number of dense points.
     pub fn len(&self) -> usize {
         self.rest.len()

@@ -14,7 +14,7 @@ pub const PIN_HOLD: f64 = 1.25;
 pub const PIN_BLEND: f64 = 2.5;
 
 /// What [`Transfer::hold`] holds the dense points to.
-#[derive(Debug, Clone, Default, PartialEq, Eq)]
+#[derive(Debug, Clone, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub struct Pins {
     /// Per simulation point: whether it is pinned (empty: none is).
     pub simulation: Vec<bool>,
