@@ -36,7 +36,7 @@ use super::PointSpringsSystems;
 use super::components::{
     DenseSurface, SimulationPoints, SurfaceNetwork, SurfaceSprings, SurfaceTimings,
 };
-use crate::core::cloud::surfels::{DEFAULT_SURFEL_SCALE, SURFEL_BYTES, pack_surfels, surfel_radii};
+use crate::core::cloud::surfels::{DEFAULT_SURFEL_SCALE, SURFEL_BYTES, SurfelShape, pack_surfels};
 use crate::core::solver::angle_difference;
 
 /// Corners of a surfel's hexagon.
@@ -215,8 +215,8 @@ pub struct SurfelSlot {
     look: LookKey,
     /// Surfels the slot (and the index mesh) holds.
     slot: usize,
-    /// Disc radius of each dense point.
-    radii: Vec<f32>,
+    /// Each dense point's disc at rest and the surface's edge.
+    shape: SurfelShape,
     /// The dense surface's revision last uploaded.
     uploaded: u64,
     /// The network the radii were measured for (its address): a bake or a new preparation
@@ -250,6 +250,16 @@ fn index_mesh(slot: usize) -> Mesh {
     )
     .with_inserted_attribute(Mesh::ATTRIBUTE_POSITION, positions)
     .with_inserted_indices(Indices::U32(indices))
+}
+
+/// The surfels of a dense surface at rest, as `render` sizes them.
+fn shape_of(dense: &DenseSurface, render: &SurfelRender) -> SurfelShape {
+    let rest = dense.transfer();
+    SurfelShape::at_rest(
+        rest.rest_positions(),
+        rest.rest_normals(),
+        render.radius_scale,
+    )
 }
 
 /// The slot for `points` surfels: a power of two, so that resampling rarely outgrows it.
@@ -289,7 +299,7 @@ fn attach_surfels(
         let fits = slot.as_ref().is_some_and(|s| {
             s.look == key
                 && s.network == network
-                && s.radii.len() == dense.len()
+                && s.shape.len() == dense.len()
                 && dense.len() <= s.slot
         });
         if fits {
@@ -302,7 +312,7 @@ fn attach_surfels(
             // Grown within its slot (resampling), or given a new rest shape (a bake, a new
             // preparation): new radii only.
             if let Some(mut slot) = slot {
-                slot.radii = surfel_radii(dense.transfer().rest_positions(), render.radius_scale);
+                slot.shape = shape_of(dense, render);
                 slot.uploaded = 0;
                 slot.network = network;
             }
@@ -321,12 +331,12 @@ fn attach_surfels(
             .entry(key)
             .or_insert_with(|| Batch::new(render.color, size, &mut assets));
         let first = batch.join(entity, size, &mut assets);
-        let radii = surfel_radii(dense.transfer().rest_positions(), render.radius_scale);
+        let shape = shape_of(dense, render);
         commands.entity(entity).insert((
             SurfelSlot {
                 look: key,
                 slot: size,
-                radii,
+                shape,
                 uploaded: 0,
                 network,
             },
@@ -428,7 +438,7 @@ fn upload_surfels(
             let start = Instant::now();
             // Unused surfels (radius 0) up to the slot's start draw nothing.
             packed.resize(first * SURFEL_BYTES, 0);
-            pack_surfels(dense.positions(), dense.normals(), &slot.radii, &mut packed);
+            pack_surfels(dense.positions(), dense.normals(), &slot.shape, &mut packed);
             slot.uploaded = dense.revision();
             timings.upload_ms = start.elapsed().as_secs_f32() * 1e3;
         }

@@ -1,7 +1,8 @@
 // Surfels pulled from a storage buffer: each dense point is a hexagonal disc facing along
-// its normal. The index mesh holds the unit hexagon's six corners per surfel; this vertex
-// shader finds its surfel from the vertex index, builds a tangent frame from the normal and
-// places the corner. StandardMaterial's PBR fragment shades it.
+// its normal (cut along the surface's edge where it lies on one). The index mesh holds the
+// unit hexagon's six corners per surfel; this vertex shader finds its surfel from the vertex
+// index, builds a tangent frame from the normal and places the corner. StandardMaterial's
+// PBR fragment shades it.
 
 #import bevy_pbr::{
     mesh_bindings::mesh,
@@ -17,9 +18,17 @@
 struct Surfel {
     // xyz: position in the surface's own coordinates; w: disc radius (0: an unused slot).
     pos_radius: vec4<f32>,
-    // xyz: unit normal; w: unused.
-    normal_pad: vec4<f32>,
+    // Unit normal.
+    normal: vec3<f32>,
+    // 0, or where the surface's edge cuts the disc: the outward direction's angle in the
+    // tangent frame below (high 16 bits, -pi to pi) and the cut's distance from the centre
+    // in radii, plus one (low 16 bits); see `core::cloud::surfels::edge_word`.
+    edge: u32,
 };
+
+// As `core::cloud::surfels::EDGE_WORD_STEPS`.
+const EDGE_WORD_STEPS: f32 = 65535.0;
+const PI: f32 = 3.14159265358979;
 
 @group(#{MATERIAL_BIND_GROUP}) @binding(100) var<storage, read> surfels: array<Surfel>;
 
@@ -46,10 +55,19 @@ fn vertex(v: Vertex) -> VertexOutput {
     let local_index = v.vertex_index - mesh[v.instance_index].first_vertex_index;
     let id = min(local_index / CORNERS_PER_SURFEL, arrayLength(&surfels) - 1u);
     let s = surfels[id];
-    let n = normalize(s.normal_pad.xyz);
+    let n = normalize(s.normal);
     let t = any_tangent(n);
     let b = cross(n, t);
-    let c = v.position.xy * s.pos_radius.w;
+    let radius = s.pos_radius.w;
+    var c = v.position.xy * radius;
+    if (s.edge != 0u) {
+        // Cut by the surface's edge: the corners past the cut line are moved onto it, so
+        // the disc ends where the surface does.
+        let a = f32(s.edge >> 16u) / EDGE_WORD_STEPS * 2.0 * PI - PI;
+        let offset = f32((s.edge & 0xffffu) - 1u) / (EDGE_WORD_STEPS - 1.0) * radius;
+        let outward = vec2<f32>(cos(a), sin(a));
+        c -= outward * max(dot(c, outward) - offset, 0.0);
+    }
     let local_pos = vec4<f32>(s.pos_radius.xyz + c.x * t + c.y * b, 1.0);
 
     let world_from_local = mesh_functions::get_world_from_local(v.instance_index);

@@ -20,7 +20,7 @@ use bevy::time::TimeUpdateStrategy;
 use bevy_point_springs::core::PointCloud;
 use bevy_point_springs::core::cloud::io::read_cloud;
 use bevy_point_springs::core::cloud::surfels::{
-    DEFAULT_SURFEL_SCALE, SURFEL_BYTES, pack_surfels, surfel_radii,
+    DEFAULT_SURFEL_SCALE, SURFEL_BYTES, SurfelShape, pack_surfels,
 };
 use bevy_point_springs::core::pipeline::{DenseCloud, PreparedSurface};
 use bevy_point_springs::core::scene::{Scene, Timeline};
@@ -328,8 +328,10 @@ fn time_blocks(
     entity: Entity,
     core: &mut CoreRun,
 ) -> Result<Timing, Failure> {
-    let radii = surfel_radii(
-        dense_of(app, entity)?.transfer().rest_positions(),
+    let rest = dense_of(app, entity)?.transfer();
+    let shape = SurfelShape::at_rest(
+        rest.rest_positions(),
+        rest.rest_normals(),
         DEFAULT_SURFEL_SCALE,
     );
     let mut timing = Timing::default();
@@ -347,7 +349,7 @@ fn time_blocks(
             let start = Instant::now();
             // As the renderer does: a new buffer each frame, moved to the render world.
             let mut packed = Vec::with_capacity(dense.len() * SURFEL_BYTES);
-            pack_surfels(dense.positions(), dense.normals(), &radii, &mut packed);
+            pack_surfels(dense.positions(), dense.normals(), &shape, &mut packed);
             let handed_over = Arc::new(packed);
             timing.upload += start.elapsed().as_secs_f64();
             drop(handed_over);
