@@ -53,16 +53,9 @@ pub struct SurfelEdges {
 }
 
 impl SurfelEdges {
-    /// The edge points of a surface at rest (unit `normals`): those whose neighbours leave
-    /// a gap wider than [`EDGE_GAP`] around them in their tangent plane.
-    pub fn find(positions: &[Vec3], normals: &[Vec3]) -> Self {
-        let n = positions.len().min(normals.len());
-        let graph = KnnIndex::build(&positions[..n]).knn_graph(&positions[..n], EDGE_NEIGHBOURS);
-        Self::in_graph(&positions[..n], normals, &graph)
-    }
-
-    /// [`Self::find`] with the points' neighbours already found (`positions` the points the
-    /// graph was built over).
+    /// The edge points of a surface at rest (unit `normals`; `graph` their neighbours, built
+    /// over `positions`): those whose neighbours leave a gap wider than [`EDGE_GAP`] around
+    /// them in their tangent plane.
     fn in_graph(positions: &[Vec3], normals: &[Vec3], graph: &KnnGraph) -> Self {
         let n = positions.len().min(normals.len()).min(graph.len());
         let k = graph.k();
@@ -237,14 +230,13 @@ pub fn pack_surfels(positions: &[Vec3], normals: &[Vec3], shape: &SurfelShape, o
             .map(|v| v.normalize_or_zero())
             .filter(|v| *v != Vec3::ZERO)
     };
-    // Each edge point's own cut first (through its centre), then its neighbours' that
-    // reach past its edge line (the edge points among them keep their own).
+    // Each edge point is cut through its centre, and each of its neighbours that is not an
+    // edge point itself where its disc reaches past the edge line (the cut nearest its
+    // centre kept): an edge point's cut is only ever its own.
     let mut angles = Vec::with_capacity(edges.k);
-    let mut outwards = Vec::with_capacity(edges.points.len());
     for (&i, neighbours) in edges.points.iter().zip(edges.neighbours.chunks(edges.k)) {
         let i = i as usize;
         let Some(normal) = unit_normal(i) else {
-            outwards.push(None);
             continue;
         };
         let (t, b) = shader_frame(normal);
@@ -259,30 +251,17 @@ pub fn pack_surfels(positions: &[Vec3], normals: &[Vec3], shape: &SurfelShape, o
         );
         let (start, width) = widest_gap(&mut angles);
         if !(width > 0.0 && width.is_finite()) {
-            outwards.push(None);
             continue;
         }
         if width > CORNER_GAP {
             // A corner: one cut cannot follow both its edges, and its neighbours' discs,
             // each cut by its own edge, cover it.
             records[i * SURFEL_BYTES + 12..i * SURFEL_BYTES + 16].fill(0);
-            outwards.push(None);
             continue;
         }
         let angle = start + 0.5 * width;
         let outward = angle.cos() * t + angle.sin() * b;
         cut(records, i, outward, normal, 0.0);
-        outwards.push(Some(outward));
-    }
-    for ((&i, neighbours), outward) in edges
-        .points
-        .iter()
-        .zip(edges.neighbours.chunks(edges.k))
-        .zip(outwards)
-    {
-        let Some(outward) = outward else {
-            continue;
-        };
         for &j in neighbours {
             if edges.points.binary_search(&j).is_ok() {
                 continue;
@@ -291,7 +270,7 @@ pub fn pack_surfels(positions: &[Vec3], normals: &[Vec3], shape: &SurfelShape, o
             let Some(normal_j) = unit_normal(j) else {
                 continue;
             };
-            let inside = (positions[i as usize] - positions[j]).dot(outward);
+            let inside = (positions[i] - positions[j]).dot(outward);
             let radius = shape.radius(j, positions);
             if inside >= 0.0 && inside < radius {
                 cut(records, j, outward, normal_j, inside / radius);
@@ -592,7 +571,8 @@ mod tests {
     fn a_closed_surface_has_no_edge() {
         let sphere = crate::core::cloud::shapes::fibonacci_sphere(2000, 1.0);
         let normals = sphere.normals().unwrap();
-        assert!(SurfelEdges::find(sphere.positions(), normals).is_empty());
+        let shape = SurfelShape::at_rest(sphere.positions(), normals, DEFAULT_SURFEL_SCALE);
+        assert!(shape.edges().is_empty());
     }
 
     #[test]
