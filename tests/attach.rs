@@ -118,14 +118,24 @@ fn circle_pose(t: f32) -> Transform {
         .with_rotation(Quat::from_rotation_y(-w * t))
 }
 
+/// When the bodies started round the circle (the fixed clock's seconds): after the sheet
+/// is prepared, which takes as many ticks as the machine's clock gives it.
+#[derive(Resource)]
+struct CircleStart(f32);
+
 /// Before the tick's forces: bodies going round the circle, where each will be at the
 /// tick's end.
 fn drive_circles(
     time: Res<Time>,
+    start: Option<Res<CircleStart>>,
     mut bodies: Query<(&Circling, &mut Transform, Option<&mut Velocity>)>,
 ) {
+    // Still until they start.
+    let Some(start) = start else {
+        return;
+    };
     let (r, w) = CIRCLE;
-    let t = time.elapsed_secs();
+    let t = time.elapsed_secs() - start.0;
     for (circling, mut transform, velocity) in &mut bodies {
         match (circling, velocity) {
             (Circling::ByPosition, _) => *transform = circle_pose(t + time.delta_secs()),
@@ -166,6 +176,8 @@ fn attached_points_follow_a_body_going_round_a_circle_exactly() {
                 .before(PhysicsSet::SyncBackend),
         );
         let sheet = spawn_sheet(&mut app);
+        let begun = app.world().resource::<Time<Fixed>>().elapsed_secs();
+        app.insert_resource(CircleStart(begun));
         let mut pole = app.world_mut().spawn((circle_pose(0.0), circling));
         if let Some(body) = body {
             pole.insert((body, Velocity::zero(), Collider::ball(0.02)));
