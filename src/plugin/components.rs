@@ -467,6 +467,47 @@ pub struct SurfaceNetwork(pub Arc<SpringNetwork>);
 #[derive(Component, Debug, Clone, Deref, DerefMut)]
 pub struct DenseSurface(pub DenseCloud);
 
+/// On a surface whose transfer runs on the GPU (the renderer adds it, see
+/// `SurfelRender::device`): the simulation points to draw this frame, which the transfer
+/// systems hand over instead of transferring on the CPU. [`DenseSurface`] then keeps the
+/// dense surface as the CPU last computed it; the plugin brings it up to date where it
+/// reads it (saving a game, picking) with [`follow`](super::follow).
+#[derive(Component, Debug, Clone, Default)]
+pub struct GpuTransferInput {
+    /// The simulation points' positions to draw (the surface's own coordinates; w = 0).
+    pub(crate) positions: Vec<[f32; 4]>,
+    /// Bumped each time they change.
+    pub(crate) revision: u64,
+}
+
+impl GpuTransferInput {
+    /// Takes `points`' positions to draw; returns whether they changed.
+    pub(crate) fn set(&mut self, points: &PointState) -> bool {
+        let same = self.positions.len() == points.len()
+            && points.iter_positions().zip(&self.positions).all(|(p, q)| {
+                p.to_array().map(f32::to_bits) == [q[0], q[1], q[2]].map(f32::to_bits)
+            });
+        if same {
+            return false;
+        }
+        self.positions.clear();
+        self.positions
+            .extend(points.iter_positions().map(|p| [p.x, p.y, p.z, 0.0]));
+        self.revision += 1;
+        true
+    }
+
+    /// The positions to draw, w = 0.
+    pub fn positions(&self) -> &[[f32; 4]] {
+        &self.positions
+    }
+
+    /// Bumped each time the positions change.
+    pub fn revision(&self) -> u64 {
+        self.revision
+    }
+}
+
 /// A scene's pulls and pokes on their schedule (surfaces spawned from scenes).
 #[derive(Component, Debug, Clone, Deref, DerefMut)]
 pub struct SceneTimeline(pub Timeline);

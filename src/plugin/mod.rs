@@ -34,6 +34,8 @@ pub mod attach;
 pub mod components;
 #[cfg(feature = "rapier")]
 pub mod contact;
+#[cfg(feature = "render")]
+pub mod gpu_transfer;
 pub mod grab;
 pub mod health;
 pub mod meet;
@@ -59,11 +61,11 @@ pub use attach::{
     AttachPoints, AttachmentError, AttachmentId, AttachmentState, SurfaceAttachments,
 };
 pub use components::{
-    DEFAULT_SLEEP_AFTER, DEFAULT_SLEEP_SPEED, DeformableSurface, DenseSurface, PreparationProgress,
-    PreparedFileOutcome, PreviousTick, SceneTimeline, SimulationPoints, SleepSettings, StepOnce,
-    SurfaceAnchors, SurfaceForces, SurfaceInView, SurfaceMasses, SurfaceMaterial, SurfaceNetwork,
-    SurfacePressure, SurfaceSettings, SurfaceSleep, SurfaceSource, SurfaceSprings, SurfaceStatus,
-    SurfaceStepper, SurfaceTimings, SurfaceWork, TransferTiming,
+    DEFAULT_SLEEP_AFTER, DEFAULT_SLEEP_SPEED, DeformableSurface, DenseSurface, GpuTransferInput,
+    PreparationProgress, PreparedFileOutcome, PreviousTick, SceneTimeline, SimulationPoints,
+    SleepSettings, StepOnce, SurfaceAnchors, SurfaceForces, SurfaceInView, SurfaceMasses,
+    SurfaceMaterial, SurfaceNetwork, SurfacePressure, SurfaceSettings, SurfaceSleep, SurfaceSource,
+    SurfaceSprings, SurfaceStatus, SurfaceStepper, SurfaceTimings, SurfaceWork, TransferTiming,
 };
 #[cfg(feature = "rapier")]
 pub use contact::{
@@ -192,7 +194,9 @@ impl Plugin for PointSpringsPlugin {
             .add_systems(
                 PostUpdate,
                 (
-                    save::apply_saved_games.before(PointSpringsSystems::Transfer),
+                    (save::catch_up_before_save, save::apply_saved_games)
+                        .chain()
+                        .before(PointSpringsSystems::Transfer),
                     simulate::transfer_frame.in_set(PointSpringsSystems::Transfer),
                 ),
             );

@@ -20,9 +20,11 @@ use bevy::picking::prelude::{Pointer, Press};
 use bevy::platform::collections::HashMap;
 use bevy::prelude::*;
 
-use crate::core::cloud::surfels::{DEFAULT_SURFEL_SCALE, ray_cast_surfels, surfel_radii};
+use crate::core::cloud::surfels::{
+    DEFAULT_SURFEL_SCALE, MAX_SURFEL_STRETCH, ray_cast_surfels, surfel_radii,
+};
 
-use super::components::{DeformableSurface, DenseSurface};
+use super::components::{DeformableSurface, DenseSurface, GpuTransferInput, SimulationPoints};
 use super::grab::GrabMessage;
 use super::render::SurfelRender;
 
@@ -108,19 +110,40 @@ pub(crate) struct PickCache {
     revision: Option<u64>,
     /// Bounds of the discs, in the surface's space.
     bounds: (Vec3, Vec3),
+    /// How far the dense surface reached past its simulation points at rest, plus the
+    /// largest disc grown to its most: the margin of the box around a GPU-drawn surface's
+    /// simulation points.
+    gpu_margin: f32,
 }
 
+/// The bounds of `points`, grown by `margin`.
+fn bounds_of(points: impl Iterator<Item = Vec3>, margin: f32) -> (Vec3, Vec3) {
+    let (lo, hi) = points.fold(
+        (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
+        |(lo, hi), p| (lo.min(p), hi.max(p)),
+    );
+    (lo - Vec3::splat(margin), hi + Vec3::splat(margin))
+}
+
+/// What the picking backend reads of a surface.
+type PickParts = (
+    Entity,
+    &'static mut DenseSurface,
+    &'static SimulationPoints,
+    Has<GpuTransferInput>,
+    &'static GlobalTransform,
+    Option<&'static SurfelRender>,
+);
+
 /// The picking backend: each pointer's ray against each surface's surfels (after a test
-/// against the bounds of its discs, kept until the surface moves).
+/// against the bounds of its discs, kept until the surface moves). A surface drawn by the
+/// GPU ([`GpuTransferInput`]) keeps no current dense surface on the CPU: its box is that
+/// of its simulation points, grown by how far the dense surface reached past them at rest,
+/// and only when a ray meets it is the dense surface brought up to date on the CPU.
 pub(crate) fn surfel_picking(
     ray_map: Res<RayMap>,
     cameras: Query<&Camera>,
-    surfaces: Query<(
-        Entity,
-        &DenseSurface,
-        &GlobalTransform,
-        Option<&SurfelRender>,
-    )>,
+    mut surfaces: Query<PickParts>,
     mut caches: Local<HashMap<Entity, PickCache>>,
     mut hits: MessageWriter<PointerHits>,
 ) {
@@ -128,27 +151,34 @@ pub(crate) fn surfel_picking(
     if ray_map.map.is_empty() {
         return;
     }
-    for (entity, dense, _, render) in &surfaces {
+    for (entity, dense, points, gpu, _, render) in &surfaces {
         let cache = caches.entry(entity).or_default();
         let positions = dense.positions();
         if cache.radii.len() != positions.len() {
             let scale = render.map_or(DEFAULT_SURFEL_SCALE, |r| r.radius_scale);
-            cache.radii = surfel_radii(dense.transfer().rest_positions(), scale);
+            let rest = dense.transfer();
+            cache.radii = surfel_radii(rest.rest_positions(), scale);
+            let reach = cache.radii.iter().copied().fold(0.0, f32::max);
+            let dense_box = bounds_of(rest.rest_positions().iter().copied(), 0.0);
+            let sim_box = bounds_of(rest.simulation_rest().iter().copied(), 0.0);
+            let past = (sim_box.0 - dense_box.0)
+                .max(dense_box.1 - sim_box.1)
+                .max(Vec3::ZERO)
+                .max_element();
+            cache.gpu_margin = past + MAX_SURFEL_STRETCH * reach;
             cache.revision = None;
         }
-        if cache.revision != Some(dense.revision()) {
-            let reach = Vec3::splat(cache.radii.iter().copied().fold(0.0, f32::max));
-            let (lo, hi) = positions.iter().fold(
-                (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
-                |(lo, hi), &p| (lo.min(p), hi.max(p)),
-            );
-            cache.bounds = (lo - reach, hi + reach);
+        if gpu {
+            cache.bounds = bounds_of(points.iter_positions(), cache.gpu_margin);
+        } else if cache.revision != Some(dense.revision()) {
+            let reach = cache.radii.iter().copied().fold(0.0, f32::max);
+            cache.bounds = bounds_of(positions.iter().copied(), reach);
             cache.revision = Some(dense.revision());
         }
     }
     for (&RayId { camera, pointer }, ray) in ray_map.iter() {
         let mut picks = Vec::new();
-        for (entity, dense, place, _) in &surfaces {
+        for (entity, mut dense, points, gpu, place, _) in &mut surfaces {
             let Some(cache) = caches.get(&entity) else {
                 continue;
             };
@@ -157,6 +187,10 @@ pub(crate) fn surfel_picking(
             let origin = to_local.transform_point3(ray.origin);
             let direction = to_local.transform_vector3(*ray.direction);
             if !ray_meets_box(origin, direction, cache.bounds) {
+                continue;
+            }
+            if gpu && let Err(e) = super::simulate::follow(&mut dense, points) {
+                warn!("point-springs: picking surface {entity}: {e}");
                 continue;
             }
             let Some(hit) = ray_cast_surfels(

@@ -32,12 +32,18 @@ use bevy::render::render_resource::{
 use bevy::render::storage::ShaderBuffer;
 use bevy::shader::{ShaderDefVal, ShaderRef};
 
+use bevy::render::renderer::{RenderAdapterInfo, RenderDevice};
+use wgpu_types::DeviceType;
+
 use super::PointSpringsSystems;
 use super::components::{
-    DenseSurface, SimulationPoints, SurfaceNetwork, SurfaceSprings, SurfaceTimings,
+    DenseSurface, GpuTransferInput, SimulationPoints, SurfaceNetwork, SurfaceSprings,
+    SurfaceTimings,
 };
+use super::gpu_transfer::GpuSurfels;
 use crate::core::cloud::surfels::{DEFAULT_SURFEL_SCALE, SURFEL_BYTES, SurfelShape, pack_surfels};
 use crate::core::solver::angle_difference;
+use crate::core::transfer::gpu::{GpuTransferLayout, POINT_WORDS};
 
 /// Corners of a surfel's hexagon.
 const CORNERS: usize = 6;
@@ -47,6 +53,10 @@ const HEXAGON_SCALE: f32 = 1.154_700_5;
 
 /// Smallest slot (surfels) a surface gets.
 const MIN_SLOT: usize = 64;
+
+/// From this many dense points [`TransferDevice::Auto`] transfers on the GPU (where the
+/// adapter is one: a software rasteriser such as lavapipe keeps the CPU path).
+pub const GPU_TRANSFER_MIN_POINTS: usize = 100_000;
 
 /// Depth bias of the spring gizmos (−1 draws over everything, 0 is plain depth testing).
 const GIZMO_DEPTH_BIAS: f32 = -0.01;
@@ -78,13 +88,14 @@ impl Plugin for SurfelRenderPlugin {
             // drawn a frame behind the meshes).
             .add_systems(
                 PostUpdate,
-                (attach_surfels, upload_surfels)
+                (attach_surfels, layout_gpu_surfels, upload_surfels)
                     .chain()
                     .after(PointSpringsSystems::Transfer)
                     .before(AssetEventSystems),
             )
             .add_systems(Update, draw_gizmos);
         super::view::add_systems(app);
+        super::gpu_transfer::build(app);
     }
 }
 
@@ -141,6 +152,8 @@ pub struct SurfelRender {
     pub radius_scale: f32,
     /// Surface colour (surfaces of one colour share a material).
     pub color: Color,
+    /// Where the dense surface is computed for drawing.
+    pub device: TransferDevice,
 }
 
 impl Default for SurfelRender {
@@ -148,8 +161,71 @@ impl Default for SurfelRender {
         Self {
             radius_scale: DEFAULT_SURFEL_SCALE,
             color: Color::srgb(0.85, 0.62, 0.38),
+            device: TransferDevice::Auto,
         }
     }
+}
+
+/// Where a drawn surface's transfer runs each frame.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Reflect)]
+pub enum TransferDevice {
+    /// The GPU from [`GPU_TRANSFER_MIN_POINTS`] dense points on, where the adapter is a GPU
+    /// (not a software rasteriser); the CPU otherwise.
+    #[default]
+    Auto,
+    /// The CPU: the transfer on Bevy's compute pool, the surfel records packed and uploaded
+    /// (32 bytes a dense point a frame). [`DenseSurface`] follows every frame.
+    Cpu,
+    /// The GPU, whatever the size or the adapter: a compute pass writes the surfel records
+    /// (see [`gpu_transfer`](super::gpu_transfer)); only the simulation points are uploaded,
+    /// and [`DenseSurface`] is brought up to date only where the plugin reads it. Falls
+    /// back to the CPU (logged) where the device cannot bind the surface's arrays.
+    Gpu,
+}
+
+/// Whether `render`'s surface of `dense` points transfers on the GPU of `adapter` (none:
+/// no renderer), whose storage bindings hold at most `limit` bytes.
+fn on_gpu(
+    render: &SurfelRender,
+    dense: &DenseSurface,
+    adapter: Option<&RenderAdapterInfo>,
+    limit: u64,
+) -> bool {
+    wants_gpu(render.device, dense.len(), adapter.map(|a| a.device_type))
+        && gpu_arrays_fit(dense, limit)
+}
+
+/// Whether `device` asks for the GPU for `points` dense points on an adapter of type
+/// `adapter` (none: no renderer, so no GPU).
+fn wants_gpu(device: TransferDevice, points: usize, adapter: Option<DeviceType>) -> bool {
+    let Some(adapter) = adapter else {
+        return false;
+    };
+    match device {
+        TransferDevice::Cpu => false,
+        TransferDevice::Gpu => true,
+        TransferDevice::Auto => points >= GPU_TRANSFER_MIN_POINTS && adapter != DeviceType::Cpu,
+    }
+}
+
+/// Whether the largest array of a surface's GPU layout fits one storage binding.
+fn gpu_arrays_fit(dense: &DenseSurface, limit: u64) -> bool {
+    let transfer = dense.transfer();
+    let k = transfer.config().k.min(transfer.simulation_points()).max(1);
+    let per_point = [k, (3 * (k - 1)).max(1), POINT_WORDS]
+        .into_iter()
+        .max()
+        .unwrap_or(POINT_WORDS);
+    let largest = (dense.len() as u64) * (per_point as u64) * 4;
+    let fits = largest <= limit;
+    if !fits {
+        warn!(
+            "a surface of {} dense points needs {largest} bytes in one storage binding, the \
+             device binds {limit}: it is transferred on the CPU",
+            dense.len()
+        );
+    }
+    fits
 }
 
 /// What to draw over the surfaces with gizmos (a resource; all off by default).
@@ -170,11 +246,12 @@ pub struct SpringGizmos {
 /// The bend (radians past the rest angle) a hinge gizmo shows in full red.
 pub const HINGE_GIZMO_FULL_BEND: f32 = 0.5;
 
-/// A look: the colour's bits.
-type LookKey = [u32; 4];
+/// A look: the colour's bits, and whether the GPU writes the batch's buffer (a batch is
+/// written either by the CPU or by the GPU, never both).
+type LookKey = ([u32; 4], bool);
 
-fn look(color: Color) -> LookKey {
-    color.to_linear().to_f32_array().map(f32::to_bits)
+fn look(color: Color, gpu: bool) -> LookKey {
+    (color.to_linear().to_f32_array().map(f32::to_bits), gpu)
 }
 
 /// Surfaces of one look: their shared material and buffer, and each one's slot in it.
@@ -186,6 +263,19 @@ struct Batch {
     capacity: usize,
     /// Each member's first surfel and slot size, in order.
     members: Vec<(Entity, usize, usize)>,
+    /// Whether the GPU writes the buffer (the main world never does then).
+    gpu: bool,
+}
+
+/// A batch's buffer of `capacity` surfels (zeros: radius 0 draws nothing). One the GPU
+/// writes has no data in the main world, and the CPU never writes it.
+fn surfel_buffer(capacity: usize, gpu: bool) -> ShaderBuffer {
+    let bytes = SURFEL_BYTES * capacity;
+    if gpu {
+        ShaderBuffer::with_size(bytes, RenderAssetUsages::RENDER_WORLD)
+    } else {
+        ShaderBuffer::new(&vec![0u8; bytes], RenderAssetUsages::RENDER_WORLD)
+    }
 }
 
 impl Batch {
@@ -222,6 +312,22 @@ pub struct SurfelSlot {
     /// The network the radii were measured for (its address): a bake or a new preparation
     /// replaces it, and with it the dense surface's rest shape.
     network: usize,
+    /// Names `shape` (a new one each time it is measured), for the GPU layout.
+    shape_id: u64,
+}
+
+impl SurfelSlot {
+    /// Whether the GPU writes this surface's surfels.
+    pub fn on_gpu(&self) -> bool {
+        self.look.1
+    }
+}
+
+/// A new [`SurfelSlot::shape_id`].
+fn next_shape_id() -> u64 {
+    use std::sync::atomic::{AtomicU64, Ordering};
+    static NEXT: AtomicU64 = AtomicU64::new(1);
+    NEXT.fetch_add(1, Ordering::Relaxed)
 }
 
 /// The address of a surface's network, which a bake or a preparation replaces.
@@ -275,11 +381,28 @@ struct SurfelAssets<'w> {
     buffers: ResMut<'w, Assets<ShaderBuffer>>,
 }
 
+/// The device the renderer runs on (none in a headless app).
+#[derive(SystemParam)]
+struct Adapter<'w> {
+    info: Option<Res<'w, RenderAdapterInfo>>,
+    device: Option<Res<'w, RenderDevice>>,
+}
+
+impl Adapter<'_> {
+    /// Bytes one storage binding may hold.
+    fn binding_limit(&self) -> u64 {
+        self.device
+            .as_ref()
+            .map_or(0, |d| d.limits().max_storage_buffer_binding_size)
+    }
+}
+
 /// Gives new (or outgrown) drawn surfaces a slot, a mesh and their batch's material.
 fn attach_surfels(
     mut commands: Commands,
     mut batches: ResMut<SurfelBatches>,
     mut assets: SurfelAssets,
+    adapter: Adapter,
     mut surfaces: Query<(
         Entity,
         &DenseSurface,
@@ -293,8 +416,15 @@ fn attach_surfels(
     for entity in removed.read() {
         batches.forget(entity);
     }
+    let limit = adapter.binding_limit();
     for (entity, dense, network, render, slot) in &mut surfaces {
-        let key = look(render.color);
+        // Decided once per slot (a forced choice at once): a size that crosses the
+        // threshold by resampling keeps its device until the slot is outgrown.
+        let gpu = match (&slot, render.device) {
+            (Some(slot), TransferDevice::Auto) if dense.len() <= slot.slot => slot.look.1,
+            _ => on_gpu(render, dense, adapter.info.as_deref(), limit),
+        };
+        let key = look(render.color, gpu);
         let network = network_key(network);
         let fits = slot.as_ref().is_some_and(|s| {
             s.look == key
@@ -315,6 +445,7 @@ fn attach_surfels(
                 slot.shape = shape_of(dense, render);
                 slot.uploaded = 0;
                 slot.network = network;
+                slot.shape_id = next_shape_id();
             }
             continue;
         }
@@ -329,16 +460,23 @@ fn attach_surfels(
         let batch = batches
             .batches
             .entry(key)
-            .or_insert_with(|| Batch::new(render.color, size, &mut assets));
+            .or_insert_with(|| Batch::new(render.color, gpu, size, &mut assets));
         let first = batch.join(entity, size, &mut assets);
         let shape = shape_of(dense, render);
-        commands.entity(entity).insert((
+        let mut surface = commands.entity(entity);
+        if gpu {
+            surface.insert(GpuTransferInput::default());
+        } else {
+            surface.remove::<(GpuTransferInput, GpuSurfels)>();
+        }
+        surface.insert((
             SurfelSlot {
                 look: key,
                 slot: size,
                 shape,
                 uploaded: 0,
                 network,
+                shape_id: next_shape_id(),
             },
             Mesh3d(assets.meshes.add(index_mesh(size))),
             MeshMaterial3d(batch.material.clone()),
@@ -358,12 +496,10 @@ impl SurfelBatches {
 }
 
 impl Batch {
-    /// A batch of surfels of `color` with a buffer of `capacity` surfels and no member.
-    fn new(color: Color, capacity: usize, assets: &mut SurfelAssets) -> Self {
-        let buffer = assets.buffers.add(ShaderBuffer::new(
-            &vec![0u8; SURFEL_BYTES * capacity],
-            RenderAssetUsages::RENDER_WORLD,
-        ));
+    /// A batch of surfels of `color` with a buffer of `capacity` surfels and no member,
+    /// written by the GPU or the CPU.
+    fn new(color: Color, gpu: bool, capacity: usize, assets: &mut SurfelAssets) -> Self {
+        let buffer = assets.buffers.add(surfel_buffer(capacity, gpu));
         let material = assets.materials.add(SurfelMaterial {
             base: StandardMaterial {
                 base_color: color,
@@ -382,6 +518,7 @@ impl Batch {
             buffer,
             capacity,
             members: Vec::new(),
+            gpu,
         }
     }
 
@@ -395,15 +532,67 @@ impl Batch {
             // A larger buffer under a new handle, and the material pointed at it (the old
             // buffer is freed once nothing uses it).
             self.capacity = needed.next_power_of_two();
-            self.buffer = assets.buffers.add(ShaderBuffer::new(
-                &vec![0u8; SURFEL_BYTES * self.capacity],
-                RenderAssetUsages::RENDER_WORLD,
-            ));
+            self.buffer = assets.buffers.add(surfel_buffer(self.capacity, self.gpu));
             if let Some(mut material) = assets.materials.get_mut(&self.material) {
                 material.extension.surfels = self.buffer.clone();
             }
         }
         first
+    }
+}
+
+/// Builds the GPU layout of each surface the GPU transfers, again when its transfer or
+/// its surfel shape changed.
+fn layout_gpu_surfels(
+    mut commands: Commands,
+    batches: Res<SurfelBatches>,
+    mut surfaces: Query<(Entity, &DenseSurface, &SurfelSlot, Option<&mut GpuSurfels>)>,
+) {
+    for (entity, dense, slot, gpu) in &mut surfaces {
+        if !slot.on_gpu() {
+            continue;
+        }
+        let built_for = (dense.transfer_id(), slot.shape_id);
+        if gpu.as_ref().is_some_and(|g| g.built_for == built_for) {
+            continue;
+        }
+        let layout = match GpuTransferLayout::new(dense.transfer(), &slot.shape) {
+            Ok(layout) => Arc::new(layout),
+            Err(e) => {
+                // The shape is measured again next frame (it lags a resampling by one).
+                debug!("surface {entity}: GPU layout not built yet: {e}");
+                continue;
+            }
+        };
+        let Some((buffer, first)) = batches.place(entity, slot.look) else {
+            continue;
+        };
+        let layout_id = next_shape_id();
+        match gpu {
+            Some(mut gpu) => {
+                gpu.layout = layout;
+                gpu.layout_id = layout_id;
+                gpu.built_for = built_for;
+            }
+            None => {
+                commands.entity(entity).insert(GpuSurfels {
+                    layout,
+                    layout_id,
+                    built_for,
+                    buffer,
+                    first,
+                });
+            }
+        }
+    }
+}
+
+impl SurfelBatches {
+    /// A member's batch buffer and first surfel.
+    fn place(&self, entity: Entity, look: LookKey) -> Option<(Handle<ShaderBuffer>, u32)> {
+        let batch = self.batches.get(&look)?;
+        let &(_, first, _) = batch.members.iter().find(|m| m.0 == entity)?;
+        Some((batch.buffer.clone(), first as u32))
     }
 }
 
@@ -413,8 +602,23 @@ fn upload_surfels(
     batches: Res<SurfelBatches>,
     mut buffers: ResMut<Assets<ShaderBuffer>>,
     mut surfaces: Query<(&DenseSurface, &mut SurfelSlot, &mut SurfaceTimings)>,
+    mut gpu_surfels: Query<&mut GpuSurfels>,
 ) {
     for batch in batches.batches.values() {
+        if batch.gpu {
+            for &(entity, first, _) in &batch.members {
+                if let Ok(mut gpu) = gpu_surfels.get_mut(entity)
+                    && (gpu.buffer != batch.buffer || gpu.first as usize != first)
+                {
+                    gpu.buffer = batch.buffer.clone();
+                    gpu.first = first as u32;
+                }
+                if let Ok((.., mut timings)) = surfaces.get_mut(entity) {
+                    timings.upload_ms = 0.0;
+                }
+            }
+            continue;
+        }
         let changed = batch.members.iter().any(|&(e, ..)| {
             surfaces
                 .get(e)
@@ -511,5 +715,29 @@ fn draw_gizmos(
                 gizmos.line(a, b, color);
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn auto_takes_the_gpu_for_large_surfaces_on_a_real_gpu_only() {
+        let large = GPU_TRANSFER_MIN_POINTS;
+        let auto = TransferDevice::Auto;
+        assert!(wants_gpu(auto, large, Some(DeviceType::DiscreteGpu)));
+        assert!(wants_gpu(auto, large, Some(DeviceType::IntegratedGpu)));
+        assert!(!wants_gpu(auto, large - 1, Some(DeviceType::DiscreteGpu)));
+        // lavapipe: the GPU would be the same cores.
+        assert!(!wants_gpu(auto, large, Some(DeviceType::Cpu)));
+        assert!(wants_gpu(TransferDevice::Gpu, 10, Some(DeviceType::Cpu)));
+        assert!(!wants_gpu(
+            TransferDevice::Cpu,
+            large,
+            Some(DeviceType::DiscreteGpu)
+        ));
+        // No renderer: nothing to run a pass on.
+        assert!(!wants_gpu(TransferDevice::Gpu, large, None));
     }
 }

@@ -32,9 +32,9 @@ use bevy::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use super::components::{
-    DenseSurface, SceneTimeline, SimulationPoints, SurfaceAnchors, SurfaceForces, SurfaceMasses,
-    SurfaceMaterial, SurfaceNetwork, SurfacePressure, SurfaceSleep, SurfaceSprings, SurfaceStatus,
-    SurfaceStepper,
+    DenseSurface, GpuTransferInput, SceneTimeline, SimulationPoints, SurfaceAnchors, SurfaceForces,
+    SurfaceMasses, SurfaceMaterial, SurfaceNetwork, SurfacePressure, SurfaceSleep, SurfaceSprings,
+    SurfaceStatus, SurfaceStepper,
 };
 use super::grab::{Grabs, HeldGrab};
 use crate::core::cloud::io::{TaggedError, decode_tagged, encode_tagged, write_atomically};
@@ -194,6 +194,28 @@ type SaveParts = (
         Option<&'static SurfaceBaked>,
     ),
 );
+
+/// Surfaces whose transfer runs on the GPU keep no current dense surface on the CPU
+/// ([`GpuTransferInput`]): before a save reads it, it is brought up to date (the CPU
+/// transfer of the simulation points as they are).
+pub(crate) fn catch_up_before_save(
+    mut requests: MessageReader<SaveGameMessage>,
+    mut surfaces: Query<(Entity, &SimulationPoints, &mut DenseSurface), With<GpuTransferInput>>,
+) {
+    let saving = requests
+        .read()
+        .any(|r| matches!(r, SaveGameMessage::Save { .. }));
+    if !saving {
+        return;
+    }
+    for (entity, points, mut dense) in &mut surfaces {
+        if let Err(e) = super::simulate::follow(&mut dense, points) {
+            warn!(
+                "point-springs: surface {entity}: its dense surface could not be brought up to date for the save: {e}"
+            );
+        }
+    }
+}
 
 /// Carries out the frame's save and load requests, in order.
 pub(crate) fn apply_saved_games(

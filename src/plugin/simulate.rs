@@ -30,10 +30,10 @@ use crate::core::solver::{PointState, SpringMaterial};
 use crate::core::transfer::TransferError;
 
 use super::components::{
-    DenseSurface, ModelQuery, PreviousTick, SceneTimeline, SimulationPoints, StepOnce,
-    SurfaceAnchors, SurfaceForces, SurfaceInView, SurfaceMasses, SurfaceMaterial, SurfaceNetwork,
-    SurfaceSettings, SurfaceSleep, SurfaceSprings, SurfaceStatus, SurfaceStepper, SurfaceTimings,
-    SurfaceWork, TransferTiming,
+    DenseSurface, GpuTransferInput, ModelQuery, PreviousTick, SceneTimeline, SimulationPoints,
+    StepOnce, SurfaceAnchors, SurfaceForces, SurfaceInView, SurfaceMasses, SurfaceMaterial,
+    SurfaceNetwork, SurfaceSettings, SurfaceSleep, SurfaceSprings, SurfaceStatus, SurfaceStepper,
+    SurfaceTimings, SurfaceWork, TransferTiming,
 };
 
 /// Dense surfaces up to this many points follow the simulation on the calling thread
@@ -260,7 +260,10 @@ type TransferParts = (
         &'static mut PreviousTick,
     ),
     &'static SurfaceStepper,
-    &'static mut DenseSurface,
+    (
+        &'static mut DenseSurface,
+        Option<&'static mut GpuTransferInput>,
+    ),
     &'static mut SurfaceStatus,
     (&'static SurfaceSettings, Ref<'static, SurfaceInView>),
     (&'static mut SurfaceWork, &'static mut SurfaceTimings),
@@ -274,7 +277,7 @@ pub(crate) fn transfer_tick(mut surfaces: Query<TransferParts>) {
         entity,
         (points, masses, _),
         stepper,
-        mut dense,
+        (mut dense, gpu),
         mut status,
         (settings, in_view),
         (mut work, mut timings),
@@ -298,7 +301,12 @@ pub(crate) fn transfer_tick(mut surfaces: Query<TransferParts>) {
             continue;
         }
         if settings.transfer == TransferTiming::EveryTick {
-            follow_counted(entity, &mut dense, points, &mut status, &mut work);
+            match gpu {
+                Some(mut gpu) => {
+                    gpu.set(points);
+                }
+                None => follow_counted(entity, &mut dense, points, &mut status, &mut work),
+            }
         }
         timings.transfer_ms = ms_since(start);
     }
@@ -329,7 +337,7 @@ pub(crate) fn transfer_frame(time: Option<Res<Time<Fixed>>>, mut surfaces: Query
         entity,
         (points, masses, mut previous),
         _,
-        mut dense,
+        (mut dense, gpu),
         mut status,
         (settings, in_view),
         (mut work, mut timings),
@@ -347,7 +355,12 @@ pub(crate) fn transfer_frame(time: Option<Res<Time<Fixed>>>, mut surfaces: Query
             } else {
                 points
             };
-            follow_counted(entity, &mut dense, drawn, &mut status, &mut work);
+            match gpu {
+                Some(mut gpu) => {
+                    gpu.set(drawn);
+                }
+                None => follow_counted(entity, &mut dense, drawn, &mut status, &mut work),
+            }
             timings.transfer_ms = ms_since(start);
         }
     }

@@ -97,6 +97,11 @@ impl SurfelEdges {
     pub fn points(&self) -> &[u32] {
         &self.points
     }
+
+    /// The edge points, their neighbours (k a point, in turn) and k.
+    pub(crate) fn parts(&self) -> (&[u32], &[u32], usize) {
+        (&self.points, &self.neighbours, self.k)
+    }
 }
 
 /// The most a surfel grows where the surface is stretched (times its radius at rest).
@@ -150,6 +155,11 @@ impl SurfelShape {
     /// Each surfel's radius at rest.
     pub fn radii(&self) -> &[f32] {
         &self.radii
+    }
+
+    /// Each point's far neighbour and its distance at rest.
+    pub(crate) fn far(&self) -> &[(u32, f32)] {
+        &self.far
     }
 
     /// The points on the surface's edge.
@@ -317,6 +327,62 @@ pub fn edge_angle(word: u32) -> f32 {
 /// The offset (radii from the centre) at which an edge word cuts.
 pub fn edge_offset(word: u32) -> f32 {
     (word & 0xffff).saturating_sub(1) as f32 / (EDGE_WORD_STEPS - 1) as f32
+}
+
+/// How far two packings of the same surfels (see [`pack_surfels`]) are apart: the GPU
+/// transfer's records against the CPU's, say.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct RecordDifferences {
+    /// Records compared.
+    pub records: usize,
+    /// Largest distance between positions.
+    pub position: f32,
+    /// Largest distance between normals.
+    pub normal: f32,
+    /// Largest difference between radii, relative to the second record's.
+    pub radius: f32,
+    /// Records the second packing cuts along an edge.
+    pub edges: usize,
+    /// Edge words that differ at all.
+    pub edge_words_differ: usize,
+    /// Edge words that differ by more than one step in angle or offset (or where only one
+    /// record is cut): more than rounding.
+    pub edge_words_apart: usize,
+}
+
+/// Compares two packings record by record (as many records as the shorter holds).
+pub fn compare_records(a: &[u8], b: &[u8]) -> RecordDifferences {
+    let word = |r: &[u8], w: usize| {
+        u32::from_le_bytes([r[4 * w], r[4 * w + 1], r[4 * w + 2], r[4 * w + 3]])
+    };
+    let float = |r: &[u8], w: usize| f32::from_bits(word(r, w));
+    let vector = |r: &[u8], w: usize| Vec3::new(float(r, w), float(r, w + 1), float(r, w + 2));
+    let steps = |w: u32| (i64::from(w >> 16), i64::from(w & 0xffff));
+    let mut d = RecordDifferences::default();
+    for (x, y) in a
+        .chunks_exact(SURFEL_BYTES)
+        .zip(b.chunks_exact(SURFEL_BYTES))
+    {
+        d.records += 1;
+        d.position = d.position.max(vector(x, 0).distance(vector(y, 0)));
+        d.normal = d.normal.max(vector(x, 4).distance(vector(y, 4)));
+        let (rx, ry) = (float(x, 3), float(y, 3));
+        d.radius = d
+            .radius
+            .max((rx - ry).abs() / ry.abs().max(f32::MIN_POSITIVE));
+        let (wx, wy) = (word(x, 7), word(y, 7));
+        d.edges += usize::from(wy != 0);
+        d.edge_words_differ += usize::from(wx != wy);
+        let ((ax, ox), (ay, oy)) = (steps(wx), steps(wy));
+        // The angle wraps round at ±π.
+        let angle = (ax - ay)
+            .abs()
+            .min(i64::from(EDGE_WORD_STEPS) - (ax - ay).abs());
+        if (wx == 0) != (wy == 0) || angle > 1 || (ox - oy).abs() > 1 {
+            d.edge_words_apart += 1;
+        }
+    }
+    d
 }
 
 /// Each point's surfel radius: `scale` times the distance to its [`SURFEL_NEIGHBOURS`]-th

@@ -1,6 +1,7 @@
 //! The dense surface of a running simulation: the transfer each frame, resampling when due.
 
 use std::path::Path;
+use std::sync::atomic::{AtomicU64, Ordering};
 
 use glam::Vec3;
 
@@ -30,6 +31,16 @@ pub struct DenseCloud {
     maintained_at: u64,
     /// The revision of the masses whose pins the transfer holds to (0: none seen).
     pins_revision: u64,
+    /// Names the transfer's coefficients: a new one each time they change (see
+    /// [`Self::transfer_id`]).
+    transfer_id: u64,
+}
+
+/// The next [`DenseCloud::transfer_id`].
+static NEXT_TRANSFER_ID: AtomicU64 = AtomicU64::new(1);
+
+fn next_transfer_id() -> u64 {
+    NEXT_TRANSFER_ID.fetch_add(1, Ordering::Relaxed)
 }
 
 /// Where a [`DenseCloud`] stands (for a snapshot): its deformed points, the points
@@ -100,6 +111,7 @@ impl DenseCloud {
             inserted: 0,
             maintained_at: 0,
             pins_revision: 0,
+            transfer_id: next_transfer_id(),
         }
     }
 
@@ -143,6 +155,9 @@ impl DenseCloud {
         let refit = self.transfer.hold(&pins)? > 0;
         self.pins_revision = masses.revision;
         self.fresh &= !refit;
+        if refit {
+            self.transfer_id = next_transfer_id();
+        }
         Ok(refit)
     }
 
@@ -237,6 +252,7 @@ impl DenseCloud {
             let index = crate::core::cloud::knn::KnnIndex::build(&self.transfer.sim_rest);
             self.transfer
                 .extend(&state.inserted_rest, &state.inserted_normals, &index);
+            self.transfer_id = next_transfer_id();
         }
         if let Some(resampler) = self.resampler.as_mut() {
             resampler.set_spacings(&state.spacing, &state.sampled);
@@ -292,6 +308,14 @@ impl DenseCloud {
         self.revision
     }
 
+    /// Names the transfer's coefficients and rest points: unique to this cloud (and its
+    /// clones), and new each time they change (pins held anew, points inserted by
+    /// resampling or a snapshot). A copy of the coefficients elsewhere (the GPU's) is
+    /// current while this stays the same.
+    pub fn transfer_id(&self) -> u64 {
+        self.transfer_id
+    }
+
     /// Points resampling has inserted so far.
     pub fn inserted(&self) -> usize {
         self.inserted
@@ -340,6 +364,7 @@ impl DenseCloud {
             let added = &self.transfer.rest_normals()[self.normals.len()..];
             self.normals.extend_from_slice(added);
             self.fresh = false;
+            self.transfer_id = next_transfer_id();
         }
         Ok(report)
     }

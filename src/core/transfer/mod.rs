@@ -78,6 +78,7 @@ pub use pins::{PIN_BLEND, PIN_HOLD, Pins};
 
 pub(crate) use frame::simd_displacements;
 use frame::simd_positions;
+pub mod gpu;
 pub mod resample;
 
 use glam::{Vec3, Vec3A};
