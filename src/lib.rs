@@ -76,7 +76,9 @@ pub mod prelude {
     #[cfg(feature = "render")]
     pub use crate::plugin::pick::{PointerGrabSettings, PointerGrabs, SurfacePickingPlugin};
     #[cfg(feature = "render")]
-    pub use crate::plugin::render::{SpringGizmos, SurfelRender, SurfelRenderPlugin};
+    pub use crate::plugin::render::{
+        SpringGizmos, SurfelRender, SurfelRenderPlugin, TransferDevice,
+    };
     #[cfg(feature = "plugin")]
     pub use crate::plugin::{
         AttachPoints, AttachmentState, CloudAsset, DeformableSurface, DenseSurface, GrabMessage,

@@ -72,6 +72,8 @@ pub struct DemoArgs {
     pub frame_rate: Option<f64>,
     /// Draw each tick's state as it ends instead of interpolating between ticks.
     pub no_interpolation: bool,
+    /// Where the surfaces' transfer runs for drawing (`--transfer-on cpu|gpu|auto`).
+    pub transfer_on: Option<TransferDevice>,
 }
 
 impl DemoArgs {
@@ -86,6 +88,14 @@ impl DemoArgs {
                 "--gizmos" => args.gizmos = true,
                 "--no-panel" => args.no_panel = true,
                 "--no-interpolation" => args.no_interpolation = true,
+                "--transfer-on" => {
+                    args.transfer_on = match it.next().as_deref() {
+                        Some("cpu") => Some(TransferDevice::Cpu),
+                        Some("gpu") => Some(TransferDevice::Gpu),
+                        Some("auto") => Some(TransferDevice::Auto),
+                        other => panic!("--transfer-on takes cpu, gpu or auto, not {other:?}"),
+                    };
+                }
                 "--frame-rate" => {
                     args.frame_rate = it
                         .next()
@@ -100,7 +110,7 @@ impl DemoArgs {
                 }
                 "-h" | "--help" => {
                     println!(
-                        "options: [FILE] [--screenshot PATH.png] [--frames N] [--frame-rate HZ] [--size WxH] [--gizmos] [--no-panel] [--no-interpolation]"
+                        "options: [FILE] [--screenshot PATH.png] [--frames N] [--frame-rate HZ] [--size WxH] [--gizmos] [--no-panel] [--no-interpolation] [--transfer-on cpu|gpu|auto]"
                     );
                     println!(
                         "mouse: left-drag pokes and pulls a surface, right-drag orbits, wheel zooms"
@@ -186,6 +196,16 @@ impl Plugin for DemoPlugin {
         );
         if self.args.no_interpolation {
             app.add_systems(PostUpdate, draw_ticks_as_they_end);
+        }
+        if let Some(device) = self.args.transfer_on {
+            app.add_systems(
+                Update,
+                move |mut surfaces: Query<&mut SurfelRender, Added<SurfelRender>>| {
+                    for mut render in &mut surfaces {
+                        render.device = device;
+                    }
+                },
+            );
         }
         if self.panel && !self.args.no_panel {
             add_panel(app);
