@@ -471,7 +471,8 @@ pub struct DenseSurface(pub DenseCloud);
 /// `SurfelRender::device`): the simulation points to draw this frame, which the transfer
 /// systems hand over instead of transferring on the CPU. [`DenseSurface`] then keeps the
 /// dense surface as the CPU last computed it; the plugin brings it up to date where it
-/// reads it (saving a game, picking) with [`follow`](super::follow).
+/// reads it (saving a game, picking, export) with
+/// [`follow`](super::simulate::follow).
 #[derive(Component, Debug, Clone, Default)]
 pub struct GpuTransferInput {
     /// The simulation points' positions to draw (the surface's own coordinates; w = 0).

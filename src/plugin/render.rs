@@ -29,10 +29,9 @@ use bevy::prelude::*;
 use bevy::render::render_resource::{
     AsBindGroup, RenderPipelineDescriptor, SpecializedMeshPipelineError,
 };
+use bevy::render::renderer::{RenderAdapterInfo, RenderDevice};
 use bevy::render::storage::ShaderBuffer;
 use bevy::shader::{ShaderDefVal, ShaderRef};
-
-use bevy::render::renderer::{RenderAdapterInfo, RenderDevice};
 use wgpu_types::DeviceType;
 
 use super::PointSpringsSystems;
@@ -314,6 +313,8 @@ pub struct SurfelSlot {
     network: usize,
     /// Names `shape` (a new one each time it is measured), for the GPU layout.
     shape_id: u64,
+    /// The setting the device was chosen for.
+    device: TransferDevice,
 }
 
 impl SurfelSlot {
@@ -397,19 +398,22 @@ impl Adapter<'_> {
     }
 }
 
+/// What [`attach_surfels`] reads and changes of a surface.
+type AttachParts = (
+    Entity,
+    (&'static DenseSurface, &'static SimulationPoints),
+    &'static SurfaceNetwork,
+    &'static SurfelRender,
+    Option<&'static mut SurfelSlot>,
+);
+
 /// Gives new (or outgrown) drawn surfaces a slot, a mesh and their batch's material.
 fn attach_surfels(
     mut commands: Commands,
     mut batches: ResMut<SurfelBatches>,
     mut assets: SurfelAssets,
     adapter: Adapter,
-    mut surfaces: Query<(
-        Entity,
-        &DenseSurface,
-        &SurfaceNetwork,
-        &SurfelRender,
-        Option<&mut SurfelSlot>,
-    )>,
+    mut surfaces: Query<AttachParts>,
     mut removed: RemovedComponents<SurfelSlot>,
 ) {
     // Forget despawned surfaces (their slots are reused when the batch is laid out anew).
@@ -417,15 +421,19 @@ fn attach_surfels(
         batches.forget(entity);
     }
     let limit = adapter.binding_limit();
-    for (entity, dense, network, render, slot) in &mut surfaces {
-        // Decided once per slot (a forced choice at once): a size that crosses the
-        // threshold by resampling keeps its device until the slot is outgrown.
-        let gpu = match (&slot, render.device) {
-            (Some(slot), TransferDevice::Auto) if dense.len() <= slot.slot => slot.look.1,
+    for (entity, (dense, points), network, render, slot) in &mut surfaces {
+        // Decided once per slot and setting: a size that crosses the threshold by
+        // resampling keeps its device until the slot is outgrown.
+        let gpu = match &slot {
+            Some(slot) if slot.device == render.device && dense.len() <= slot.slot => slot.look.1,
             _ => on_gpu(render, dense, adapter.info.as_deref(), limit),
         };
         let key = look(render.color, gpu);
         let network = network_key(network);
+        let mut slot = slot;
+        if let Some(slot) = slot.as_mut().filter(|s| s.device != render.device) {
+            slot.device = render.device;
+        }
         let fits = slot.as_ref().is_some_and(|s| {
             s.look == key
                 && s.network == network
@@ -465,7 +473,11 @@ fn attach_surfels(
         let shape = shape_of(dense, render);
         let mut surface = commands.entity(entity);
         if gpu {
-            surface.insert(GpuTransferInput::default());
+            // Drawn as the points are now until a transfer system hands over newer ones
+            // (a paused or sleeping surface may not for a while).
+            let mut input = GpuTransferInput::default();
+            input.set(points);
+            surface.insert(input);
         } else {
             surface.remove::<(GpuTransferInput, GpuSurfels)>();
         }
@@ -477,6 +489,7 @@ fn attach_surfels(
                 uploaded: 0,
                 network,
                 shape_id: next_shape_id(),
+                device: render.device,
             },
             Mesh3d(assets.meshes.add(index_mesh(size))),
             MeshMaterial3d(batch.material.clone()),
