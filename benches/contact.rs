@@ -36,8 +36,12 @@ use bevy_point_springs::core::cloud::io::read_cloud;
 use bevy_point_springs::core::cloud::shapes;
 use bevy_point_springs::core::pipeline::SurfaceConfig;
 use bevy_point_springs::core::simplify::SimplifyConfig;
+use bevy_point_springs::core::solver::Integrator;
 use bevy_point_springs::core::solver::{BendingModel, MaterialUnits, SpringMaterial};
 use bevy_point_springs::plugin::SleepSettings;
+use bevy_point_springs::plugin::{
+    ContactDiagnostics, ContactSolve, SurfaceMeetingReport, SurfaceStepper,
+};
 use bevy_point_springs::prelude::*;
 use bevy_rapier3d::prelude::*;
 

@@ -20,6 +20,8 @@ use bevy_point_springs::core::cloud::shapes;
 use bevy_point_springs::core::pipeline::SurfaceConfig;
 use bevy_point_springs::core::simplify::SimplifyConfig;
 use bevy_point_springs::core::solver::MaterialUnits;
+use bevy_point_springs::core::solver::{BendingModel, Integrator, SpringMaterial};
+use bevy_point_springs::plugin::SurfaceMasses;
 use bevy_point_springs::prelude::*;
 use bevy_rapier3d::prelude::*;
 use utils::{DemoArgs, DemoPlugin, prop_material, spawn_camera_and_light};
@@ -56,7 +58,6 @@ fn main() -> AppExit {
                 panel: false,
             },
             RapierPhysicsPlugin::<NoUserData>::default().in_fixed_schedule(),
-            SurfaceContactPlugin::default(),
         ))
         .add_systems(Startup, setup)
         .add_systems(

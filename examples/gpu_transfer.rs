@@ -34,8 +34,11 @@ use bevy_point_springs::core::cloud::surfels::{
 };
 use bevy_point_springs::core::pipeline::SurfaceConfig;
 use bevy_point_springs::core::simplify::SimplifyConfig;
+use bevy_point_springs::plugin::panel::PointSpringsPanelPlugin;
+use bevy_point_springs::plugin::pick::SurfacePickingPlugin;
 use bevy_point_springs::plugin::render::{SurfelMaterial, SurfelSlot, TransferDevice};
 use bevy_point_springs::plugin::simulate::follow;
+use bevy_point_springs::plugin::{SurfaceNetwork, SurfaceTimings, TransferTiming};
 use bevy_point_springs::prelude::*;
 
 /// Frames before the timed ones (pipelines compile, buffers grow).
@@ -80,6 +83,12 @@ fn app(log: bool) -> App {
     if !log {
         plugins = plugins.disable::<LogPlugin>();
     }
+    // No window: no pointer to grab with, no panel.
+    let point_springs = PointSpringsPlugins::default()
+        .build()
+        .disable::<SurfacePickingPlugin>();
+    #[cfg(feature = "egui")]
+    let point_springs = point_springs.disable::<PointSpringsPanelPlugin>();
     app.add_plugins((
         plugins
             .set(WindowPlugin {
@@ -93,8 +102,7 @@ fn app(log: bool) -> App {
             })
             .disable::<WinitPlugin>(),
         ScheduleRunnerPlugin::default(),
-        PointSpringsPlugin::default(),
-        SurfelRenderPlugin,
+        point_springs,
     ))
     .add_systems(Update, wave);
     app.world_mut().spawn((

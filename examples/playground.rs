@@ -27,6 +27,7 @@ use bevy_point_springs::core::cloud::shapes;
 use bevy_point_springs::core::pipeline::SurfaceConfig;
 use bevy_point_springs::core::simplify::SimplifyConfig;
 use bevy_point_springs::core::solver::MaterialUnits;
+use bevy_point_springs::core::solver::{BendingModel, DampingModel, Integrator, SpringMaterial};
 use bevy_point_springs::prelude::*;
 use bevy_rapier3d::prelude::*;
 use utils::{DemoArgs, DemoPlugin, spawn_camera_and_light};
@@ -74,7 +75,6 @@ fn main() -> AppExit {
                 panel: true,
             },
             RapierPhysicsPlugin::<NoUserData>::default().in_fixed_schedule(),
-            SurfaceContactPlugin::default(),
         ))
         .add_systems(Startup, setup)
         .add_systems(FixedUpdate, drop_balls)

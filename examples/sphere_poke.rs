@@ -15,6 +15,7 @@
 mod utils;
 
 use bevy::prelude::*;
+use bevy_point_springs::plugin::SurfaceAnchors;
 use bevy_point_springs::prelude::*;
 use utils::{DemoArgs, DemoPlugin, prop_material, spawn_camera_and_light};
 

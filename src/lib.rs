@@ -48,46 +48,42 @@ pub struct ReadmeDoctests;
 #[cfg(feature = "plugin")]
 pub mod plugin;
 
-/// The most used types, for `use bevy_point_springs::prelude::*`.
+/// What a game uses, for `use bevy_point_springs::prelude::*`: the plugins, the surface and
+/// its settings, its lifecycle events, forces and positions in world space, grabs,
+/// attachments, modelling and saved games. Everything else is in [`core`] and `plugin`,
+/// under the module that owns it.
 pub mod prelude {
-    pub use crate::core::cloud::io::{CloudFormat, LoadError, PlyEncoding, read_cloud, write_ply};
-    pub use crate::core::network::{NetworkConfig, SpringNetwork, build_network};
-    pub use crate::core::normals::{NormalSource, ensure_normals, estimate_normals};
-    pub use crate::core::pipeline::{
-        DenseCloud, ExportError, NormalsSpec, PrepareError, PreparedSurface, SurfaceConfig,
-        prepare_surface,
-    };
-    pub use crate::core::scene::{Scene, SceneError, SceneRun};
-    pub use crate::core::simplify::{SimplifyConfig, simplify, simplify_cloud};
-    pub use crate::core::solver::{
-        Anchor, AnchorId, BendingModel, DampingModel, Instability, InstabilityResponse, Integrator,
-        Solver, SolverConfig, SolverError, SpringMaterial, SpringSpec, SubstepPolicy,
-    };
-    pub use crate::core::transfer::resample::ResampleConfig;
-    pub use crate::core::transfer::{NormalUpdate, Transfer, TransferConfig, TransferError};
-    pub use crate::core::{Aabb, PointCloud};
+    pub use crate::core::pipeline::{PrepareError, SurfaceConfig};
+    pub use crate::core::simplify::SimplifyConfig;
+    pub use crate::core::solver::SolverConfig;
 
-    #[cfg(feature = "rapier")]
-    pub use crate::plugin::contact::{
-        ContactDiagnostics, ContactSolve, SurfaceContact, SurfaceContactPlugin, SurfaceContacts,
-    };
-    #[cfg(feature = "egui")]
-    pub use crate::plugin::panel::{PointSpringsPanelPlugin, SurfacePanel};
-    #[cfg(feature = "render")]
-    pub use crate::plugin::pick::{PointerGrabSettings, PointerGrabs, SurfacePickingPlugin};
-    #[cfg(feature = "render")]
-    pub use crate::plugin::render::{
-        SpringGizmos, SurfelRender, SurfelRenderPlugin, TransferDevice,
-    };
+    // Acting on a surface: grabs, attachments, meeting others, modelling, saved games.
     #[cfg(feature = "plugin")]
     pub use crate::plugin::{
-        AttachPoints, AttachmentState, CloudAsset, DeformableSurface, DenseSurface, GrabMessage,
-        GrabSettings, Grabs, ModelMessage, ModelOutcome, PointSpringsPlugin, PointSpringsSystems,
-        PreparationProgress, PrepareAgain, PrepareAgainFailed, PreviousTick, SaveGameError,
-        SaveGameMessage, SaveGameOutcome, SaveName, SceneAsset, SceneTimeline, SimulationPoints,
-        StepOnce, SurfaceAnchors, SurfaceAttachments, SurfaceForces, SurfaceHealth, SurfaceInView,
-        SurfaceMasses, SurfaceMaterial, SurfaceMeeting, SurfaceMeetingReport, SurfaceNetwork,
-        SurfaceSettings, SurfaceSleep, SurfaceSprings, SurfaceStatus, SurfaceStepper,
-        SurfaceTimings, SurfaceUnstable, SurfaceWork, TransferTiming,
+        AttachPoints, GrabMessage, ModelError, ModelMessage, ModelOutcome, SaveGameMessage,
+        SaveGameOutcome, SaveName, SurfaceAttachments, SurfaceMeeting,
     };
+    // A surface, its state and its settings at run time.
+    #[cfg(feature = "plugin")]
+    pub use crate::plugin::{
+        DeformableSurface, PrepareAgain, SurfaceMaterial, SurfaceSettings, SurfaceStatus,
+    };
+    // A surface's points, forces and drawn surface, in world space too.
+    #[cfg(feature = "plugin")]
+    pub use crate::plugin::{
+        DenseSurface, SimulationPoints, SurfaceForces, SurfacePins, WorldSurfaces,
+    };
+    // The plugins, and where a game's systems go.
+    #[cfg(feature = "plugin")]
+    pub use crate::plugin::{PointSpringsPlugin, PointSpringsPlugins, PointSpringsSystems};
+    // A surface's lifecycle.
+    #[cfg(feature = "plugin")]
+    pub use crate::plugin::{SurfaceError, SurfaceFailed, SurfaceReady, SurfaceUnstable};
+
+    #[cfg(feature = "rapier")]
+    pub use crate::plugin::contact::SurfaceContact;
+    #[cfg(feature = "egui")]
+    pub use crate::plugin::panel::SurfacePanel;
+    #[cfg(feature = "render")]
+    pub use crate::plugin::render::SurfelRender;
 }

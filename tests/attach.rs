@@ -10,7 +10,9 @@ use bevy_point_springs::core::cloud::shapes;
 use bevy_point_springs::core::pipeline::SurfaceConfig;
 use bevy_point_springs::core::simplify::SimplifyConfig;
 use bevy_point_springs::core::solver::{MaterialUnits, SpringMaterial};
+use bevy_point_springs::plugin::AttachmentState;
 use bevy_point_springs::plugin::{AttachmentError, AttachmentId};
+use bevy_point_springs::plugin::{SurfaceMasses, SurfaceNetwork};
 use bevy_point_springs::prelude::*;
 use bevy_rapier3d::prelude::*;
 

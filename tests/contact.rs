@@ -11,6 +11,13 @@ use bevy_point_springs::core::network::surface_intersections;
 use bevy_point_springs::core::pipeline::SurfaceConfig;
 use bevy_point_springs::core::simplify::SimplifyConfig;
 use bevy_point_springs::core::solver::{BendingModel, MaterialUnits};
+use bevy_point_springs::core::solver::{
+    DampingModel, Instability, InstabilityResponse, Integrator, SpringMaterial, SubstepPolicy,
+};
+use bevy_point_springs::plugin::{
+    ContactSolve, SurfaceContacts, SurfaceHealth, SurfaceMeetingReport, SurfaceNetwork,
+    SurfaceStepper,
+};
 use bevy_point_springs::prelude::*;
 use bevy_rapier3d::prelude::*;
 

@@ -25,10 +25,12 @@ use bevy_point_springs::core::cloud::surfels::{
 use bevy_point_springs::core::pipeline::SurfaceConfig;
 use bevy_point_springs::core::simplify::SimplifyConfig;
 use bevy_point_springs::plugin::components::SurfaceSettings;
+use bevy_point_springs::plugin::render::SurfelRenderPlugin;
 use bevy_point_springs::plugin::render::{
     SurfelMaterial, SurfelRender, SurfelSlot, TransferDevice,
 };
 use bevy_point_springs::plugin::simulate::follow;
+use bevy_point_springs::plugin::{SurfaceMasses, TransferTiming};
 use bevy_point_springs::prelude::*;
 
 /// A hang guard, not a speed check.

@@ -8,6 +8,9 @@ use bevy_point_springs::core::network::surface_intersections;
 use bevy_point_springs::core::pipeline::SurfaceConfig;
 use bevy_point_springs::core::simplify::SimplifyConfig;
 use bevy_point_springs::core::solver::{BendingModel, MaterialUnits, SpringMaterial, hold_still};
+use bevy_point_springs::plugin::{
+    SurfaceMasses, SurfaceMeetingReport, SurfaceNetwork, SurfaceStepper,
+};
 use bevy_point_springs::prelude::*;
 
 #[allow(dead_code)] // the helpers of other test files

@@ -6,11 +6,22 @@ use std::time::Duration;
 use bevy::ecs::schedule::SingleThreadedExecutor;
 use bevy::prelude::*;
 use bevy::time::TimeUpdateStrategy;
+use bevy_point_springs::core::PointCloud;
+use bevy_point_springs::core::cloud::io::read_cloud;
 use bevy_point_springs::core::cloud::shapes;
+use bevy_point_springs::core::pipeline::DenseCloud;
 use bevy_point_springs::core::pipeline::SurfaceConfig;
 use bevy_point_springs::core::scene::Scene;
 use bevy_point_springs::core::simplify::SimplifyConfig;
+use bevy_point_springs::core::solver::SpringMaterial;
 use bevy_point_springs::plugin::PreparedFileOutcome;
+#[cfg(feature = "render")]
+use bevy_point_springs::plugin::pick::{PointerGrabs, SurfacePickingPlugin};
+use bevy_point_springs::plugin::{
+    Grabs, PreparationProgress, PreviousTick, SceneTimeline, SurfaceAnchors, SurfaceMasses,
+    SurfaceNetwork, SurfaceSleep, SurfaceSprings, SurfaceStepper, TransferTiming,
+    WorldSurfaceError,
+};
 use bevy_point_springs::prelude::*;
 
 #[path = "support/plugin_app.rs"]
@@ -345,6 +356,23 @@ fn despawning_while_preparing_or_simulating_is_clean() {
     assert_eq!(status(&app, later), SurfaceStatus::Ready);
 }
 
+/// The lifecycle events an app saw, in order.
+#[derive(Resource, Default)]
+struct Lifecycle {
+    ready: Vec<SurfaceReady>,
+    failed: Vec<SurfaceFailed>,
+}
+
+fn watch_lifecycle(app: &mut App) {
+    app.init_resource::<Lifecycle>()
+        .add_observer(|ready: On<SurfaceReady>, mut seen: ResMut<Lifecycle>| {
+            seen.ready.push(ready.event().clone());
+        })
+        .add_observer(|failed: On<SurfaceFailed>, mut seen: ResMut<Lifecycle>| {
+            seen.failed.push(failed.event().clone());
+        });
+}
+
 #[test]
 fn bad_inputs_fail_their_surface_only() {
     let dir = std::env::temp_dir().join(format!("bps-plugin-bad-{}", std::process::id()));
@@ -386,8 +414,17 @@ fn bad_inputs_fail_their_surface_only() {
         .world_mut()
         .spawn(DeformableSurface::cloud(line, SurfaceConfig::default()))
         .id();
+    // A scan in georeferenced coordinates: f32 cannot resolve its detail out there.
+    let far = shapes::fibonacci_sphere(500, 1.0);
+    let far_points: Vec<Vec3> = far.positions().iter().map(|p| *p + Vec3::X * 1e6).collect();
+    let far = PointCloud::new(far_points, far.normals().map(<[Vec3]>::to_vec)).unwrap();
+    let far = app
+        .world_mut()
+        .spawn(DeformableSurface::cloud(far, SurfaceConfig::default()))
+        .id();
     let good = app.world_mut().spawn(floating(1000, 100)).id();
-    let all = [missing, broken, nan, two, line, good];
+    watch_lifecycle(&mut app);
+    let all = [missing, broken, nan, two, line, far, good];
     settle(&mut app, &all);
     let expect = [
         (missing, "nowhere.ply"),
@@ -398,12 +435,50 @@ fn bad_inputs_fail_their_surface_only() {
     ];
     for (entity, needle) in expect {
         match status(&app, entity) {
-            SurfaceStatus::Failed(message) => {
+            SurfaceStatus::Failed(error) => {
+                let message = error.to_string();
                 assert!(message.contains(needle), "{needle}: {message}");
             }
             other => panic!("{needle}: expected a failure, got {other:?}"),
         }
     }
+    // Each failure was sent once, as an event carrying the status's typed error.
+    let seen = app.world().resource::<Lifecycle>();
+    for entity in [missing, broken, nan, two, line, far] {
+        let events: Vec<_> = seen.failed.iter().filter(|f| f.entity == entity).collect();
+        assert_eq!(events.len(), 1, "{entity}: {events:?}");
+        assert!(!events[0].still_running);
+        assert_eq!(
+            SurfaceStatus::Failed(events[0].error.clone()),
+            status(&app, entity)
+        );
+        let file = matches!(events[0].error, SurfaceError::Load(_));
+        assert_eq!(file, [missing, broken, nan].contains(&entity), "{entity}");
+    }
+    let far_error = &seen.failed.iter().find(|f| f.entity == far).unwrap().error;
+    assert!(
+        matches!(
+            far_error,
+            SurfaceError::Prepare(PrepareError::Precision { magnitude, .. }) if *magnitude > 9e5
+        ),
+        "{far_error:?}"
+    );
+    for entity in [two, line] {
+        let error = &seen
+            .failed
+            .iter()
+            .find(|f| f.entity == entity)
+            .unwrap()
+            .error;
+        assert!(matches!(error, SurfaceError::Prepare(_)), "{error:?}");
+    }
+    assert_eq!(
+        seen.ready,
+        [SurfaceReady {
+            entity: good,
+            again: false
+        }]
+    );
     // The good one runs, and the app keeps going.
     assert_eq!(status(&app, good), SurfaceStatus::Ready);
     for _ in 0..5 {
@@ -744,7 +819,6 @@ fn file_outcome(app: &App, e: Entity) -> PreparedFileOutcome {
 
 #[test]
 fn a_surface_is_read_from_its_prepared_file_and_runs_as_if_prepared() {
-    use bevy_point_springs::core::cloud::io::read_cloud;
     use bevy_point_springs::core::pipeline::prepared::PreparedFileError;
     let dir = std::env::temp_dir().join(format!("bps-prepared-plugin-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
@@ -841,4 +915,205 @@ fn a_scene_read_from_its_prepared_file_runs_bit_for_bit_as_prepared() {
         assert!(bits(dense.normals()) == bits(prepared.normals()));
     }
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Issue 37: `Changed<DenseSurface>` means the drawn surface changed: it does not fire on
+/// the ticks and frames of a surface at rest, and does on those of one being pulled.
+#[test]
+fn changed_dense_surface_fires_only_when_the_drawn_surface_moves() {
+    #[derive(Resource, Default)]
+    struct Changes(usize);
+    let mut app = create_app(&assets_dir(), TICK);
+    app.init_resource::<Changes>().add_systems(
+        Last,
+        |changed: Query<(), Changed<DenseSurface>>, mut changes: ResMut<Changes>| {
+            changes.0 += changed.iter().count();
+        },
+    );
+    let sphere = app.world_mut().spawn(floating(1000, 100)).id();
+    settle(&mut app, &[sphere]);
+    // Asleep: nothing moves any more.
+    let sleep_ticks =
+        (bevy_point_springs::plugin::DEFAULT_SLEEP_AFTER / TICK.as_secs_f32()).ceil() as usize;
+    for _ in 0..sleep_ticks + 2 {
+        app.update();
+    }
+    assert!(app.world().get::<SurfaceSleep>(sphere).unwrap().asleep);
+    assert!(
+        app.world().resource::<Changes>().0 > 0,
+        "never seen changed"
+    );
+    app.world_mut().resource_mut::<Changes>().0 = 0;
+    let revision = app.world().get::<DenseSurface>(sphere).unwrap().revision();
+    for _ in 0..30 {
+        app.update();
+    }
+    assert_eq!(app.world().resource::<Changes>().0, 0);
+    assert_eq!(
+        app.world().get::<DenseSurface>(sphere).unwrap().revision(),
+        revision
+    );
+    // Pulled: it changes as it moves.
+    let (_, top) = nearest_point(&app, sphere, Vec3::Y);
+    app.world_mut().write_message(GrabMessage::Start {
+        key: 1,
+        surface: sphere,
+        at: top,
+    });
+    app.update();
+    app.world_mut().write_message(GrabMessage::Move {
+        key: 1,
+        target: top + Vec3::Y * 0.2,
+    });
+    for _ in 0..10 {
+        app.update();
+    }
+    let changes = app.world().resource::<Changes>().0;
+    assert!(changes >= 9, "{changes} changes in 11 updates");
+    assert!(app.world().get::<DenseSurface>(sphere).unwrap().revision() > revision);
+}
+
+/// Issue 37: `WorldSurfaces` speaks world coordinates. A world force on a surface turned a
+/// quarter turn about Z and scaled twice moves it along the world's X (its own −Y), and
+/// the points and dense surface it reads are the local ones placed by the transform.
+#[test]
+fn world_space_pushes_and_reads_follow_the_surface_transform() {
+    use bevy::ecs::system::RunSystemOnce;
+
+    #[derive(Resource)]
+    struct Pushed(Entity);
+    let mut app = create_app(&assets_dir(), TICK);
+    // Headless apps have no transform propagation: the global transform is set as well.
+    let placed = Transform::from_xyz(5.0, 0.0, 0.0)
+        .with_rotation(Quat::from_rotation_z(std::f32::consts::FRAC_PI_2))
+        .with_scale(Vec3::splat(2.0));
+    let sphere = app
+        .world_mut()
+        .spawn((floating(1000, 100), placed, GlobalTransform::from(placed)))
+        .id();
+    settle(&mut app, &[sphere]);
+    let world_points = |app: &mut App| {
+        app.world_mut()
+            .run_system_once(move |surfaces: WorldSurfaces| surfaces.points(sphere))
+            .unwrap()
+            .unwrap()
+    };
+    let mean = |points: &[Vec3]| points.iter().sum::<Vec3>() / points.len() as f32;
+    let local = app
+        .world()
+        .get::<SimulationPoints>(sphere)
+        .unwrap()
+        .0
+        .clone();
+    let before = world_points(&mut app);
+    for (w, l) in before.iter().zip(local.iter_positions()) {
+        assert!(w.distance(placed.transform_point(l)) < 1e-5);
+    }
+    assert!(mean(&before).distance(Vec3::new(5.0, 0.0, 0.0)) < 0.05);
+    // Dense positions and normals: placed, and the normals still outward and unit.
+    let (dense, normals) = app
+        .world_mut()
+        .run_system_once(move |surfaces: WorldSurfaces| surfaces.dense(sphere))
+        .unwrap()
+        .unwrap();
+    let centre = mean(&dense);
+    for (p, n) in dense.iter().zip(&normals) {
+        assert!((n.length() - 1.0).abs() < 1e-4);
+        assert!(n.dot(*p - centre) > 0.0, "a normal turned inward");
+    }
+    app.insert_resource(Pushed(sphere)).add_systems(
+        FixedUpdate,
+        (|mut surfaces: WorldSurfaces, pushed: Res<Pushed>| {
+            surfaces.push_all(pushed.0, Vec3::X * 0.5).unwrap();
+        })
+        .in_set(PointSpringsSystems::Forces),
+    );
+    for _ in 0..30 {
+        app.update();
+    }
+    let moved = mean(&world_points(&mut app)) - mean(&before);
+    assert!(moved.x > 0.01, "{moved}");
+    assert!(
+        moved.y.abs() < 0.01 * moved.x && moved.z.abs() < 0.01 * moved.x,
+        "{moved}"
+    );
+    // Bad input is refused, not applied.
+    let stranger = app.world_mut().spawn_empty().id();
+    let refused = app
+        .world_mut()
+        .run_system_once(move |mut surfaces: WorldSurfaces| {
+            (
+                surfaces.push_all(stranger, Vec3::X),
+                surfaces.push_near(sphere, Vec3::ZERO, f32::NAN, Vec3::X),
+            )
+        })
+        .unwrap();
+    assert_eq!(refused.0, Err(WorldSurfaceError::NotASurface(stranger)));
+    assert!(matches!(
+        refused.1,
+        Err(WorldSurfaceError::NotFinite { .. })
+    ));
+}
+
+/// Issue 37: one pin that stops the point. A point pinned while its surface falls stays
+/// where it was pinned, still; freed, it falls again. Bad indices are refused.
+#[test]
+fn a_pinned_point_stays_put_and_falls_again_when_freed() {
+    use bevy::ecs::system::RunSystemOnce;
+
+    let mut app = create_app(&assets_dir(), TICK);
+    let config = SurfaceConfig {
+        simplify: SimplifyConfig::target(100),
+        ..default()
+    };
+    let sphere = app
+        .world_mut()
+        .spawn(DeformableSurface::cloud(
+            shapes::fibonacci_sphere(1000, 1.0),
+            config,
+        ))
+        .id();
+    settle(&mut app, &[sphere]);
+    for _ in 0..10 {
+        app.update();
+    }
+    let point = |app: &App, i: usize| {
+        let points = app.world().get::<SimulationPoints>(sphere).unwrap();
+        (points.position(i), points.velocities()[i])
+    };
+    let (top, _) = nearest_point(&app, sphere, Vec3::Y * 2.0);
+    let (_, falling) = point(&app, top);
+    assert!(falling.y < -0.1, "not falling: {falling}");
+    app.world_mut()
+        .run_system_once(move |mut pins: SurfacePins| pins.pin(sphere, top))
+        .unwrap()
+        .unwrap();
+    let (held, still) = point(&app, top);
+    assert_eq!(still, Vec3::ZERO);
+    for _ in 0..20 {
+        app.update();
+        assert_eq!(point(&app, top), (held, Vec3::ZERO));
+    }
+    app.world_mut()
+        .run_system_once(move |mut pins: SurfacePins| {
+            assert_eq!(pins.is_pinned(sphere, top), Some(true));
+            pins.free(sphere, top)
+        })
+        .unwrap()
+        .unwrap();
+    for _ in 0..10 {
+        app.update();
+    }
+    assert!(point(&app, top).0.y < held.y - 0.01, "did not fall again");
+    let refused = app
+        .world_mut()
+        .run_system_once(move |mut pins: SurfacePins| pins.pin(sphere, 100_000))
+        .unwrap();
+    assert!(
+        matches!(
+            refused,
+            Err(WorldSurfaceError::PointOutOfRange { index: 100_000, .. })
+        ),
+        "{refused:?}"
+    );
 }

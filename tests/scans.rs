@@ -9,6 +9,8 @@ use std::time::{Duration, Instant};
 
 use bevy::prelude::*;
 use bevy_point_springs::core::cloud::io::read_cloud;
+use bevy_point_springs::core::solver::BendingModel;
+use bevy_point_springs::plugin::{GrabSettings, SurfaceHealth, SurfaceMasses, SurfaceStepper};
 use bevy_point_springs::prelude::*;
 use bevy_rapier3d::prelude::*;
 

@@ -22,6 +22,10 @@ use bevy::render::view::screenshot::{Screenshot, ScreenshotCaptured};
 use bevy::time::TimeUpdateStrategy;
 use bevy::window::{PrimaryWindow, WindowResolution};
 use bevy_point_springs::core::cloud::io::write_atomically_to_path;
+#[cfg(feature = "egui")]
+use bevy_point_springs::plugin::panel::PointSpringsPanelPlugin;
+use bevy_point_springs::plugin::render::{SpringGizmos, TransferDevice};
+use bevy_point_springs::plugin::{PreparationProgress, SceneTimeline, TransferTiming};
 use bevy_point_springs::prelude::*;
 
 /// Window size of every example.
@@ -167,6 +171,14 @@ pub struct DemoPlugin {
 
 impl Plugin for DemoPlugin {
     fn build(&self, app: &mut App) {
+        let show_panel = self.panel && !self.args.no_panel;
+        let plugins = PointSpringsPlugins::default().build();
+        #[cfg(feature = "egui")]
+        let plugins = if show_panel {
+            plugins
+        } else {
+            plugins.disable::<PointSpringsPanelPlugin>()
+        };
         app.add_plugins((
             DefaultPlugins.set(WindowPlugin {
                 primary_window: Some(Window {
@@ -176,9 +188,7 @@ impl Plugin for DemoPlugin {
                 }),
                 ..default()
             }),
-            PointSpringsPlugin::default(),
-            SurfelRenderPlugin,
-            SurfacePickingPlugin,
+            plugins,
         ))
         .insert_resource(self.args.clone())
         .insert_resource(Time::<Fixed>::from_hz(TICK_HZ))
@@ -207,7 +217,7 @@ impl Plugin for DemoPlugin {
                 },
             );
         }
-        if self.panel && !self.args.no_panel {
+        if show_panel {
             add_panel(app);
         }
         if self.args.gizmos {
@@ -227,14 +237,14 @@ impl Plugin for DemoPlugin {
     }
 }
 
-/// The live panel; input over it (drags, scrolls) is the panel's, not the scene's.
+/// The live panel (in the plugin group); input over it (drags, scrolls) is the panel's,
+/// not the scene's.
 #[cfg(feature = "egui")]
 fn add_panel(app: &mut App) {
-    app.add_plugins(PointSpringsPanelPlugin)
-        .insert_resource(bevy_egui::EguiGlobalSettings {
-            enable_absorb_bevy_input_system: true,
-            ..default()
-        });
+    app.insert_resource(bevy_egui::EguiGlobalSettings {
+        enable_absorb_bevy_input_system: true,
+        ..default()
+    });
 }
 
 #[cfg(not(feature = "egui"))]
@@ -496,10 +506,10 @@ fn screenshot_and_exit(
             .iter()
             .all(|(s, _)| matches!(s, SurfaceStatus::Ready | SurfaceStatus::Failed(_)));
     if prepared && !started.0 {
-        let failed: Vec<&str> = surfaces
+        let failed: Vec<String> = surfaces
             .iter()
             .filter_map(|(s, _)| match s {
-                SurfaceStatus::Failed(why) => Some(why.as_str()),
+                SurfaceStatus::Failed(why) => Some(why.to_string()),
                 _ => None,
             })
             .collect();

@@ -181,9 +181,9 @@ pub enum SurfaceStatus {
     Preparing,
     /// Prepared and simulating.
     Ready,
-    /// Loading, preparing or simulating failed; the message says why. Other surfaces are
-    /// not affected.
-    Failed(String),
+    /// Loading, preparing or simulating failed, for this reason (also sent as
+    /// [`SurfaceFailed`](super::SurfaceFailed)). Other surfaces are not affected.
+    Failed(super::SurfaceError),
 }
 
 impl SurfaceStatus {
@@ -333,6 +333,10 @@ pub struct SurfaceTimings {
     pub transfer_ms: f32,
     /// Copying the dense points into the surfel buffer, the last frame (feature `render`).
     pub upload_ms: f32,
+    /// Modelling requests ([`ModelMessage`](super::ModelMessage)) on the tick, the last
+    /// tick: a reset, or taking a bake or export to the background and putting its result
+    /// in place.
+    pub model_ms: f32,
 }
 
 impl SurfaceTimings {

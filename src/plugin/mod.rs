@@ -1,7 +1,9 @@
 //! The Bevy layer: deformable surfaces as ECS data, simulated on the fixed tick.
 //!
-//! Add [`PointSpringsPlugin`] and spawn a [`DeformableSurface`]. The plugin prepares it in
-//! the background ([`prepare`]), then every tick of its schedule (by default
+//! Add [`PointSpringsPlugins`] (or [`PointSpringsPlugin`] alone, headless) and spawn a
+//! [`DeformableSurface`]. The plugin prepares it in the background ([`prepare`]; it says
+//! when it is ready or why it failed with the events of [`lifecycle`]), then every tick of
+//! its schedule (by default
 //! [`FixedUpdate`]) runs the chained sets of [`PointSpringsSystems`]:
 //! `Forces → Integrate → Transfer` ([`simulate`]). Each surface is one entity whose
 //! components hold whole arrays ([`components`]); drawing comes with the `render` feature.
@@ -21,7 +23,7 @@
 //! }
 //!
 //! let mut app = App::new();
-//! app.add_plugins((MinimalPlugins, PointSpringsPlugin::default()))
+//! app.add_plugins((MinimalPlugins, PointSpringsPlugins::default()))
 //!     .add_systems(FixedUpdate, wind.in_set(PointSpringsSystems::Forces));
 //! let config = SurfaceConfig::default();
 //! app.world_mut()
@@ -38,6 +40,7 @@ pub mod contact;
 pub mod gpu_transfer;
 pub mod grab;
 pub mod health;
+pub mod lifecycle;
 pub mod meet;
 pub mod model;
 #[cfg(feature = "egui")]
@@ -52,6 +55,7 @@ pub mod simulate;
 pub mod sleep;
 #[cfg(feature = "render")]
 pub mod view;
+pub mod world;
 
 use bevy::ecs::schedule::{InternedScheduleLabel, ScheduleLabel};
 use bevy::prelude::*;
@@ -73,12 +77,65 @@ pub use contact::{
 };
 pub use grab::{GrabMessage, GrabSettings, Grabs};
 pub use health::{STABLE_STEPS_TO_RECOVER, SurfaceHealth, SurfaceUnstable};
+pub use lifecycle::{SurfaceError, SurfaceFailed, SurfaceReady};
 pub use meet::{SurfaceMeeting, SurfaceMeetingReport};
-pub use model::{ModelMessage, ModelOutcome};
+pub use model::{ModelError, ModelMessage, ModelOutcome};
 pub use prepare::{PreparationPool, PrepareAgain, PrepareAgainFailed};
 pub use save::{
     SAVED_GAME_MAGIC, SaveGameError, SaveGameMessage, SaveGameOutcome, SaveName, SurfaceBaked,
 };
+pub use world::{SurfacePins, WorldSurfaceError, WorldSurfaces};
+
+/// All of the crate's plugins that the enabled features bring, on one schedule: the
+/// simulation ([`PointSpringsPlugin`]); with `render`, surfel drawing (left out where the
+/// app has no renderer, as in a headless server) and pointer grabs; with `egui`, the panel
+/// (left out without a renderer unless the app brings egui itself); with `rapier`,
+/// contacts with bevy_rapier3d's colliders (which needs
+/// rapier's plugin on the same schedule). Leave one out with
+/// `PointSpringsPlugins::default().build().disable::<P>()`.
+#[derive(Debug, Clone)]
+pub struct PointSpringsPlugins {
+    schedule: InternedScheduleLabel,
+}
+
+impl PointSpringsPlugins {
+    /// Every plugin of the group on `schedule` (see [`PointSpringsPlugin::new`]).
+    pub fn new(schedule: impl ScheduleLabel) -> Self {
+        Self {
+            schedule: schedule.intern(),
+        }
+    }
+}
+
+impl Default for PointSpringsPlugins {
+    fn default() -> Self {
+        Self::new(FixedUpdate)
+    }
+}
+
+impl PluginGroup for PointSpringsPlugins {
+    fn build(self) -> bevy::app::PluginGroupBuilder {
+        let group = bevy::app::PluginGroupBuilder::start::<Self>().add(PointSpringsPlugin {
+            schedule: self.schedule,
+        });
+        #[cfg(feature = "render")]
+        let group = group
+            .add(render::SurfelRenderPlugin)
+            .add(pick::SurfacePickingPlugin);
+        #[cfg(feature = "rapier")]
+        let group = group.add(SurfaceContactPlugin::new(self.schedule));
+        #[cfg(feature = "egui")]
+        let group = group.add(panel::PointSpringsPanelPlugin);
+        group
+    }
+}
+
+/// Whether the app draws: the drawing plugins of [`PointSpringsPlugins`] leave themselves
+/// out of an app without Bevy's renderer.
+#[cfg(feature = "render")]
+pub(crate) fn has_renderer(app: &App) -> bool {
+    app.is_plugin_added::<bevy::render::RenderPlugin>()
+}
 
 /// The plugin. Add it next to `DefaultPlugins` (or `MinimalPlugins`, plus `AssetPlugin`
 /// for files).
@@ -156,7 +213,11 @@ impl Plugin for PointSpringsPlugin {
             )
             .add_systems(
                 PreUpdate,
-                (prepare::start_preparation, prepare::finish_preparation)
+                (
+                    prepare::start_preparation,
+                    prepare::finish_preparation,
+                    lifecycle::announce_failures,
+                )
                     .chain()
                     .in_set(PointSpringsSystems::Prepare),
             )
@@ -166,6 +227,7 @@ impl Plugin for PointSpringsPlugin {
                     (
                         simulate::remember_previous_tick,
                         model::apply_model_requests,
+                        model::finish_model_work,
                         grab::apply_grabs,
                         attach::hold_attachments,
                         simulate::drive_timelines,
@@ -188,7 +250,9 @@ impl Plugin for PointSpringsPlugin {
                     )
                         .chain()
                         .in_set(PointSpringsSystems::Integrate),
-                    simulate::transfer_tick.in_set(PointSpringsSystems::Transfer),
+                    (simulate::transfer_tick, lifecycle::announce_failures)
+                        .chain()
+                        .in_set(PointSpringsSystems::Transfer),
                 ),
             )
             .add_systems(
@@ -197,7 +261,9 @@ impl Plugin for PointSpringsPlugin {
                     (save::catch_up_before_save, save::apply_saved_games)
                         .chain()
                         .before(PointSpringsSystems::Transfer),
-                    simulate::transfer_frame.in_set(PointSpringsSystems::Transfer),
+                    (simulate::transfer_frame, lifecycle::announce_failures)
+                        .chain()
+                        .in_set(PointSpringsSystems::Transfer),
                 ),
             );
     }

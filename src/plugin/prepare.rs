@@ -39,6 +39,7 @@ use super::components::{
     SurfaceNetwork, SurfacePressure, SurfaceSource, SurfaceSprings, SurfaceStatus, SurfaceStepper,
 };
 use super::grab::Grabs;
+use super::lifecycle::{SurfaceError, SurfaceFailed, SurfaceReady};
 use super::save::SurfaceBaked;
 
 /// The rayon pool surfaces are prepared in (see the module docs).
@@ -63,6 +64,20 @@ impl PreparationPool {
             .build()?;
         Ok(Self(Arc::new(pool)))
     }
+
+    /// The app's pool (`pool`), or a new one [matching](Self::matching_async_compute) the
+    /// compute pool, made the app's.
+    pub(crate) fn get_or_build(
+        commands: &mut Commands,
+        pool: Option<&Self>,
+    ) -> Result<Self, rayon::ThreadPoolBuildError> {
+        if let Some(pool) = pool {
+            return Ok(pool.clone());
+        }
+        let pool = Self::matching_async_compute()?;
+        commands.insert_resource(pool.clone());
+        Ok(pool)
+    }
 }
 
 /// Prepares a surface again with these settings, from its source: a baked or sculpted
@@ -78,7 +93,7 @@ pub struct PrepareAgain(pub SurfaceConfig);
 /// Why the last [`PrepareAgain`] of a ready surface failed; the old simulation ran on.
 /// Removed when another starts.
 #[derive(Component, Debug, Clone, PartialEq)]
-pub struct PrepareAgainFailed(pub String);
+pub struct PrepareAgainFailed(pub SurfaceError);
 
 /// What a finished preparation hands over.
 struct Prepared {
@@ -125,7 +140,7 @@ impl Shared {
 /// removed) asks the pipeline to stop.
 #[derive(Component)]
 pub(crate) struct PreparationTask {
-    task: Task<Result<Prepared, String>>,
+    task: Task<Result<Prepared, SurfaceError>>,
     shared: Arc<Shared>,
     /// With [`PrepareAgain`] on a ready surface: the settings it takes when the new
     /// simulation replaces the old one, which runs on meanwhile.
@@ -142,7 +157,7 @@ impl Drop for PreparationTask {
 enum Inputs {
     Ready(Box<(PointCloud, Option<Scene>)>),
     Waiting,
-    Failed(String),
+    Failed(SurfaceError),
 }
 
 fn cloud_from_asset(
@@ -154,8 +169,8 @@ fn cloud_from_asset(
         return Inputs::Ready(Box::new((cloud.0.clone(), None)));
     }
     match server.map(|s| s.load_state(handle)) {
-        None => Inputs::Failed("loading a file needs Bevy's AssetPlugin".to_owned()),
-        Some(LoadState::Failed(e)) => Inputs::Failed(e.to_string()),
+        None => Inputs::Failed(SurfaceError::NoAssetPlugin),
+        Some(LoadState::Failed(e)) => Inputs::Failed(SurfaceError::Load(e)),
         Some(_) => Inputs::Waiting,
     }
 }
@@ -175,8 +190,8 @@ fn inputs(
         SurfaceSource::Scene(handle) => {
             let Some(scene) = scenes.and_then(|s| s.get(handle)) else {
                 return match server.map(|s| s.load_state(handle)) {
-                    None => Inputs::Failed("loading a scene needs Bevy's AssetPlugin".into()),
-                    Some(LoadState::Failed(e)) => Inputs::Failed(e.to_string()),
+                    None => Inputs::Failed(SurfaceError::NoAssetPlugin),
+                    Some(LoadState::Failed(e)) => Inputs::Failed(SurfaceError::Load(e)),
                     Some(_) => Inputs::Waiting,
                 };
             };
@@ -230,24 +245,18 @@ pub(crate) fn start_preparation(
                 }
                 continue;
             }
-            Inputs::Failed(message) => {
-                refuse(&mut commands, entity, &mut status, background, message);
+            Inputs::Failed(error) => {
+                refuse(&mut commands, entity, &mut status, background, error);
                 continue;
             }
         };
-        let pool = match &pool {
-            Some(pool) => PreparationPool::clone(pool),
-            None => match PreparationPool::matching_async_compute() {
-                Ok(pool) => {
-                    commands.insert_resource(pool.clone());
-                    pool
-                }
-                Err(e) => {
-                    let message = format!("no thread pool: {e}");
-                    refuse(&mut commands, entity, &mut status, background, message);
-                    continue;
-                }
-            },
+        let pool = match PreparationPool::get_or_build(&mut commands, pool.as_deref()) {
+            Ok(pool) => pool,
+            Err(e) => {
+                let error = SurfaceError::ThreadPool(Arc::new(e));
+                refuse(&mut commands, entity, &mut status, background, error);
+                continue;
+            }
         };
         let mut config = again.unwrap_or(surface.config);
         if let Some(scene) = &mut scene {
@@ -293,16 +302,28 @@ fn refuse(
     entity: Entity,
     status: &mut SurfaceStatus,
     background: bool,
-    message: String,
+    error: SurfaceError,
 ) {
-    error!("point-springs surface {entity}: {message}");
-    let mut entity = commands.entity(entity);
-    entity.remove::<PrepareAgain>();
+    commands.entity(entity).remove::<PrepareAgain>();
     if background {
-        entity.insert(PrepareAgainFailed(message));
+        failed_again(commands, entity, error);
     } else {
-        *status = SurfaceStatus::Failed(message);
+        *status = SurfaceStatus::Failed(error);
     }
+}
+
+/// A [`PrepareAgain`] failed: the old simulation runs on; [`PrepareAgainFailed`] and
+/// [`SurfaceFailed`] say why.
+fn failed_again(commands: &mut Commands, entity: Entity, error: SurfaceError) {
+    error!("point-springs surface {entity}: preparing again: {error}");
+    commands
+        .entity(entity)
+        .insert(PrepareAgainFailed(error.clone()));
+    commands.trigger(SurfaceFailed {
+        entity,
+        error,
+        still_running: true,
+    });
 }
 
 /// The job itself: the scene's preparation (pins and timeline included) or the plain
@@ -313,7 +334,7 @@ fn prepare(
     config: &SurfaceConfig,
     file: Option<&Path>,
     shared: &Shared,
-) -> Result<Prepared, String> {
+) -> Result<Prepared, SurfaceError> {
     let mut progress = |p: Progress| shared.report(p);
     // What the file must have been prepared from: the cloud, the settings, and the scene.
     let source = file.map(|_| {
@@ -356,10 +377,7 @@ fn prepare(
         _ => prepare_unpinned(cloud, scene.as_ref(), config, &mut progress)?,
     };
     let (surface, timeline) = match &scene {
-        Some(scene) => scene
-            .pin_prepared(surface)
-            .map(|(s, t)| (s, Some(t)))
-            .map_err(|e| e.to_string())?,
+        Some(scene) => scene.pin_prepared(surface).map(|(s, t)| (s, Some(t)))?,
         None => (surface, None),
     };
     Ok(Prepared {
@@ -375,13 +393,11 @@ fn prepare_unpinned(
     scene: Option<&Scene>,
     config: &SurfaceConfig,
     progress: &mut dyn FnMut(Progress) -> ControlFlow<()>,
-) -> Result<PreparedSurface, String> {
-    match scene {
-        Some(scene) => scene
-            .prepare_unpinned(cloud, progress)
-            .map_err(|e| e.to_string()),
-        None => prepare_surface(cloud, config, progress).map_err(|e| e.to_string()),
-    }
+) -> Result<PreparedSurface, SurfaceError> {
+    Ok(match scene {
+        Some(scene) => scene.prepare_unpinned(cloud, progress)?,
+        None => prepare_surface(cloud, config, progress)?,
+    })
 }
 
 /// Reports progress and collects finished preparations: the simulation's components go in,
@@ -425,15 +441,13 @@ pub(crate) fn finish_preparation(
                 }
                 insert_simulation(&mut entity_commands, prepared);
                 *status = SurfaceStatus::Ready;
+                commands.trigger(SurfaceReady {
+                    entity,
+                    again: task.background.is_some(),
+                });
             }
-            Err(message) if task.background.is_some() => {
-                error!("point-springs surface {entity}: preparing again: {message}");
-                entity_commands.insert(PrepareAgainFailed(message));
-            }
-            Err(message) => {
-                error!("point-springs surface {entity}: {message}");
-                *status = SurfaceStatus::Failed(message);
-            }
+            Err(error) if task.background.is_some() => failed_again(&mut commands, entity, error),
+            Err(error) => *status = SurfaceStatus::Failed(error),
         }
     }
 }

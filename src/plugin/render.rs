@@ -67,6 +67,10 @@ pub struct SurfelRenderPlugin;
 
 impl Plugin for SurfelRenderPlugin {
     fn build(&self, app: &mut App) {
+        if !super::has_renderer(app) {
+            debug!("point-springs: no renderer, surfaces are not drawn");
+            return;
+        }
         embedded_asset!(app, "surfel.wgsl");
         app.add_plugins(MaterialPlugin::<SurfelMaterial>::default())
             .register_type::<SurfelRender>()

@@ -26,7 +26,7 @@ use bevy::prelude::*;
 use bevy::tasks::ComputeTaskPool;
 
 use crate::core::pipeline::DenseCloud;
-use crate::core::solver::{PointState, SpringMaterial};
+use crate::core::solver::{PointState, SolverError, SpringMaterial};
 use crate::core::transfer::TransferError;
 
 use super::components::{
@@ -35,6 +35,7 @@ use super::components::{
     SurfaceNetwork, SurfaceSettings, SurfaceSleep, SurfaceSprings, SurfaceStatus, SurfaceStepper,
     SurfaceTimings, SurfaceWork, TransferTiming,
 };
+use super::lifecycle::SurfaceError;
 
 /// Dense surfaces up to this many points follow the simulation on the calling thread
 /// (handing the work to other threads costs more than it saves).
@@ -52,7 +53,6 @@ pub(crate) type Gate = (&'static SurfaceSettings, Has<StepOnce>);
 
 /// What [`accumulate_forces`] reads and changes of a surface.
 type ForceParts = (
-    Entity,
     &'static SimulationPoints,
     ModelQuery,
     &'static mut SurfaceStepper,
@@ -77,16 +77,25 @@ fn ms_since(start: Instant) -> f32 {
     start.elapsed().as_secs_f32() * 1e3
 }
 
-/// Marks a surface failed and says why in the log.
-fn fail(entity: Entity, status: &mut SurfaceStatus, what: &str, error: impl std::fmt::Display) {
-    error!("point-springs surface {entity}: {what}: {error}");
-    *status = SurfaceStatus::Failed(format!("{what}: {error}"));
+/// Marks a surface failed ([`announce_failures`](super::lifecycle::announce_failures) logs
+/// it and sends [`SurfaceFailed`](super::SurfaceFailed)).
+fn fail(status: &mut SurfaceStatus, error: SurfaceError) {
+    *status = SurfaceStatus::Failed(error);
+}
+
+/// A solver failure during `during`.
+fn solver_failed(during: &'static str, error: SolverError) -> SurfaceError {
+    SurfaceError::Solver { during, error }
+}
+
+/// A transfer failure during `during`.
+fn transfer_failed(during: &'static str, error: TransferError) -> SurfaceError {
+    SurfaceError::Transfer { during, error }
 }
 
 /// Scene pulls and pokes act on their schedule.
 pub(crate) fn drive_timelines(
     mut surfaces: Query<(
-        Entity,
         &mut SceneTimeline,
         &mut SurfaceAnchors,
         &SurfaceNetwork,
@@ -94,13 +103,12 @@ pub(crate) fn drive_timelines(
         Gate,
     )>,
 ) {
-    for (entity, mut timeline, mut anchors, network, mut status, (settings, once)) in &mut surfaces
-    {
+    for (mut timeline, mut anchors, network, mut status, (settings, once)) in &mut surfaces {
         if !running(&status, settings, once) || timeline.finished() {
             continue;
         }
         if let Err(e) = timeline.advance(&mut anchors, &network.positions) {
-            fail(entity, &mut status, "scene timeline", e);
+            fail(&mut status, solver_failed("scene timeline", e));
         }
     }
 }
@@ -165,7 +173,7 @@ pub(crate) fn apply_materials(
 /// Each surface's own forces at the state the tick starts from.
 pub(crate) fn accumulate_forces(mut surfaces: Query<ForceParts>) {
     surfaces.par_iter_mut().for_each(
-        |(entity, points, parts, mut stepper, mut status, (settings, once), sleep, mut timings)| {
+        |(points, parts, mut stepper, mut status, (settings, once), sleep, mut timings)| {
             if !running(&status, settings, once) || sleep.asleep {
                 timings.forces_ms = 0.0;
                 timings.step_ms = 0.0;
@@ -173,7 +181,7 @@ pub(crate) fn accumulate_forces(mut surfaces: Query<ForceParts>) {
             }
             let start = Instant::now();
             if let Err(e) = stepper.accumulate_forces(points, parts.model()) {
-                fail(entity, &mut status, "forces", e);
+                fail(&mut status, solver_failed("forces", e));
             }
             timings.forces_ms = ms_since(start);
         },
@@ -182,7 +190,6 @@ pub(crate) fn accumulate_forces(mut surfaces: Query<ForceParts>) {
 
 /// What [`integrate`] reads and changes of a surface.
 type StepParts = (
-    Entity,
     &'static mut SimulationPoints,
     ModelQuery,
     &'static mut SurfaceForces,
@@ -199,7 +206,6 @@ pub(crate) fn integrate(time: Res<Time>, mut surfaces: Query<StepParts>) {
     let dt = time.delta_secs();
     surfaces.par_iter_mut().for_each(
         |(
-            entity,
             mut points,
             parts,
             mut forces,
@@ -225,7 +231,7 @@ pub(crate) fn integrate(time: Res<Time>, mut surfaces: Query<StepParts>) {
                     work.springs_evaluated +=
                         u64::from(report.substeps) * parts.model().springs.len() as u64;
                 }
-                Err(e) => fail(entity, &mut status, "step", e),
+                Err(e) => fail(&mut status, solver_failed("step", e)),
             }
             forces.clear();
             timings.step_ms = ms_since(start);
@@ -253,7 +259,6 @@ pub(crate) fn plastic_flow(time: Res<Time>, mut surfaces: Query<FlowParts>) {
 
 /// What the transfer systems read and change of a surface.
 type TransferParts = (
-    Entity,
     (
         &'static SimulationPoints,
         &'static SurfaceMasses,
@@ -274,7 +279,6 @@ type TransferParts = (
 /// ([`DenseCloud::hold`]: nothing to do unless the masses changed).
 pub(crate) fn transfer_tick(mut surfaces: Query<TransferParts>) {
     for (
-        entity,
         (points, masses, _),
         stepper,
         (mut dense, gpu),
@@ -291,39 +295,59 @@ pub(crate) fn transfer_tick(mut surfaces: Query<TransferParts>) {
             continue;
         }
         let start = Instant::now();
-        if let Err(e) = dense.hold(masses) {
-            fail(entity, &mut status, "holding the pins", e);
-            continue;
-        }
+        // Marked changed only where the drawn surface changes (see `follow_counted`).
+        let cloud = dense.bypass_change_detection();
+        let refit = match cloud.hold(masses) {
+            Ok(refit) => refit,
+            Err(e) => {
+                fail(&mut status, transfer_failed("holding the pins", e));
+                continue;
+            }
+        };
         let steps = stepper.diagnostics().steps;
-        if let Err(e) = dense.maintain(points, steps) {
-            fail(entity, &mut status, "resampling", e);
-            continue;
-        }
+        let inserted = match cloud.maintain(points, steps) {
+            Ok(report) => report.inserted > 0,
+            Err(e) => {
+                fail(&mut status, SurfaceError::Resample(e));
+                continue;
+            }
+        };
+        let mut moved = false;
         if settings.transfer == TransferTiming::EveryTick {
             match gpu {
                 Some(mut gpu) => {
                     gpu.set(points);
                 }
-                None => follow_counted(entity, &mut dense, points, &mut status, &mut work),
+                None => moved = follow_counted(cloud, points, &mut status, &mut work),
             }
+        }
+        if refit || inserted || moved {
+            dense.set_changed();
         }
         timings.transfer_ms = ms_since(start);
     }
 }
 
 /// [`follow`], counting the dense points carried in `work`; a failure fails the surface.
+/// Returns whether the dense surface moved: the transfer systems mark [`DenseSurface`]
+/// changed only then (or when its coefficients or points changed), so that
+/// `Changed<DenseSurface>` means the drawn surface changed.
 fn follow_counted(
-    entity: Entity,
     dense: &mut DenseCloud,
     points: &PointState,
     status: &mut SurfaceStatus,
     work: &mut SurfaceWork,
-) {
+) -> bool {
     match follow(dense, points) {
-        Ok(true) => work.points_transferred += dense.len() as u64,
-        Ok(false) => {}
-        Err(e) => fail(entity, status, "transfer", e),
+        Ok(true) => {
+            work.points_transferred += dense.len() as u64;
+            true
+        }
+        Ok(false) => false,
+        Err(e) => {
+            fail(status, transfer_failed("transfer", e));
+            false
+        }
     }
 }
 
@@ -334,7 +358,6 @@ pub(crate) fn transfer_frame(time: Option<Res<Time<Fixed>>>, mut surfaces: Query
     // without a fixed clock).
     let along = time.map_or(1.0, |t| t.overstep_fraction().clamp(0.0, 1.0));
     for (
-        entity,
         (points, masses, mut previous),
         _,
         (mut dense, gpu),
@@ -346,20 +369,28 @@ pub(crate) fn transfer_frame(time: Option<Res<Time<Fixed>>>, mut surfaces: Query
         let due = settings.transfer != TransferTiming::EveryTick || in_view.is_changed();
         if status.is_ready() && in_view.0 && due {
             let start = Instant::now();
-            if let Err(e) = dense.hold(masses) {
-                fail(entity, &mut status, "holding the pins", e);
-                continue;
-            }
+            let cloud = dense.bypass_change_detection();
+            let refit = match cloud.hold(masses) {
+                Ok(refit) => refit,
+                Err(e) => {
+                    fail(&mut status, transfer_failed("holding the pins", e));
+                    continue;
+                }
+            };
             let drawn = if settings.transfer == TransferTiming::Interpolated {
                 blend(previous.bypass_change_detection(), points, along)
             } else {
                 points
             };
-            match gpu {
+            let moved = match gpu {
                 Some(mut gpu) => {
                     gpu.set(drawn);
+                    false
                 }
-                None => follow_counted(entity, &mut dense, drawn, &mut status, &mut work),
+                None => follow_counted(cloud, drawn, &mut status, &mut work),
+            };
+            if refit || moved {
+                dense.set_changed();
             }
             timings.transfer_ms = ms_since(start);
         }

@@ -11,6 +11,9 @@ use std::time::{Duration, Instant};
 use bevy::prelude::*;
 use bevy_point_springs::core::cloud::shapes;
 use bevy_point_springs::core::solver::hold_still;
+use bevy_point_springs::plugin::{
+    PrepareAgainFailed, SurfaceHealth, SurfaceInView, SurfaceMasses, SurfaceNetwork,
+};
 use bevy_point_springs::prelude::*;
 use bevy_rapier3d::prelude::*;
 use rand::{RngExt, SeedableRng};
@@ -150,7 +153,18 @@ fn failed_requests(app: &mut App) -> u64 {
     let models = world
         .resource_mut::<Messages<ModelOutcome>>()
         .drain()
-        .filter(|o| o.result.as_ref().is_err_and(|e| !e.contains(" not ")))
+        // Refusals (not ready, already baking, prepared again meanwhile) are not failures.
+        .filter(|o| {
+            o.result.as_ref().is_err_and(|e| {
+                !matches!(
+                    e,
+                    ModelError::NotASurface(_)
+                        | ModelError::NotReady(_)
+                        | ModelError::Busy(_)
+                        | ModelError::Superseded(_)
+                )
+            })
+        })
         .inspect(|o| eprintln!("{o:?}"))
         .count();
     let mut again = world.query_filtered::<Entity, With<PrepareAgainFailed>>();

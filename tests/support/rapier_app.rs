@@ -10,6 +10,7 @@ use std::time::Duration;
 use bevy::prelude::*;
 use bevy::time::TimeUpdateStrategy;
 use bevy_point_springs::core::solver::hold_still;
+use bevy_point_springs::plugin::{SurfaceContactPlugin, SurfaceMasses, SurfaceNetwork};
 use bevy_point_springs::prelude::*;
 use bevy_rapier3d::prelude::*;
 

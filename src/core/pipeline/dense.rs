@@ -1,6 +1,7 @@
 //! The dense surface of a running simulation: the transfer each frame, resampling when due.
 
 use std::path::Path;
+use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use glam::Vec3;
@@ -15,7 +16,8 @@ use super::*;
 /// keeps it dense where it stretches.
 #[derive(Debug, Clone)]
 pub struct DenseCloud {
-    transfer: Transfer,
+    /// Shared with the jobs of [`Self::job`] (copied on write while one runs).
+    transfer: Arc<Transfer>,
     resample: Option<ResampleConfig>,
     resampler: Option<Resampler>,
     positions: Vec<Vec3>,
@@ -103,7 +105,7 @@ impl DenseCloud {
             positions: transfer.rest_positions().to_vec(),
             normals: transfer.rest_normals().to_vec(),
             resampler: resample.map(|_| Resampler::new(&transfer)),
-            transfer,
+            transfer: Arc::new(transfer),
             resample,
             input: FrameInput::default(),
             fresh: false,
@@ -152,7 +154,7 @@ impl DenseCloud {
             simulation: (0..masses.len()).map(|i| masses.is_pinned(i)).collect(),
             dense,
         };
-        let refit = self.transfer.hold(&pins)? > 0;
+        let refit = Arc::make_mut(&mut self.transfer).hold(&pins)? > 0;
         self.pins_revision = masses.revision;
         self.fresh &= !refit;
         if refit {
@@ -250,8 +252,11 @@ impl DenseCloud {
         }
         if !state.inserted_rest.is_empty() {
             let index = crate::core::cloud::knn::KnnIndex::build(&self.transfer.sim_rest);
-            self.transfer
-                .extend(&state.inserted_rest, &state.inserted_normals, &index);
+            Arc::make_mut(&mut self.transfer).extend(
+                &state.inserted_rest,
+                &state.inserted_normals,
+                &index,
+            );
             self.transfer_id = next_transfer_id();
         }
         if let Some(resampler) = self.resampler.as_mut() {
@@ -356,7 +361,8 @@ impl DenseCloud {
             .zip(rest)
             .map(|(p, r)| p - *r)
             .collect();
-        let report = resampler.resample(&mut self.transfer, &displacements, &config)?;
+        let report =
+            resampler.resample(Arc::make_mut(&mut self.transfer), &displacements, &config)?;
         if report.inserted > 0 {
             self.inserted += report.inserted;
             let added = &self.transfer.rest_positions()[self.positions.len()..];
@@ -426,6 +432,22 @@ impl DenseCloud {
         Ok(())
     }
 
+    /// What a bake or an export of this surface at the simulation state `sim` needs, to be
+    /// done away from the simulation's tick (on another thread): the transfer shared, not
+    /// copied (the running surface copies it on write meanwhile), and `sim`. Taking it costs
+    /// O(simulation points).
+    pub fn job(&self, sim: &PointState) -> DenseJob {
+        DenseJob {
+            transfer: Arc::clone(&self.transfer),
+            resample: self.resample,
+            sim: sim.clone(),
+            revision: self.revision,
+            inserted: self.inserted,
+            maintained_at: self.maintained_at,
+            pins_revision: self.pins_revision,
+        }
+    }
+
     /// Writes the deformed dense surface, positions and normals, as it stands after the last
     /// [`Self::follow`], to a PLY file. The file is written beside `path` and renamed into
     /// place, so a failed export never leaves a truncated file (an old one stays as it was).
@@ -469,4 +491,62 @@ pub enum ExportError {
     /// The file could not be written.
     #[error(transparent)]
     Save(#[from] SaveError),
+    /// The deformed surface could not be computed.
+    #[error(transparent)]
+    Transfer(#[from] TransferError),
+}
+
+/// A dense surface's share of a bake or an export, taken by [`DenseCloud::job`] and done
+/// anywhere later: it reads nothing of the running surface.
+#[derive(Debug, Clone)]
+pub struct DenseJob {
+    transfer: Arc<Transfer>,
+    resample: Option<ResampleConfig>,
+    sim: PointState,
+    revision: u64,
+    inserted: usize,
+    maintained_at: u64,
+    pins_revision: u64,
+}
+
+impl DenseJob {
+    /// The simulation state it carries.
+    pub fn simulation(&self) -> &PointState {
+        &self.sim
+    }
+
+    /// The dense surface following the job's simulation state, and that state.
+    fn followed(self) -> Result<(DenseCloud, PointState), TransferError> {
+        let mut cloud = DenseCloud {
+            positions: self.transfer.rest_positions().to_vec(),
+            // Overwritten by the frame (PCA normals orient by the frame's own).
+            normals: self.transfer.rest_normals().to_vec(),
+            resampler: None,
+            transfer: self.transfer,
+            resample: self.resample,
+            input: FrameInput::default(),
+            fresh: false,
+            revision: self.revision,
+            inserted: self.inserted,
+            maintained_at: self.maintained_at,
+            pins_revision: self.pins_revision,
+            transfer_id: next_transfer_id(),
+        };
+        cloud.follow(&self.sim)?;
+        Ok((cloud, self.sim))
+    }
+
+    /// Writes the deformed dense surface at the job's state (see [`DenseCloud::export`]).
+    pub fn export(self, path: &Path, encoding: PlyEncoding) -> Result<(), ExportError> {
+        let (cloud, _) = self.followed()?;
+        cloud.export(path, encoding)
+    }
+
+    /// The dense surface with its deformed shape at the job's state made its rest shape
+    /// (see [`DenseCloud::rebase`]).
+    pub fn rebased(self) -> Result<DenseCloud, TransferError> {
+        let (mut cloud, sim) = self.followed()?;
+        cloud.rebase(&sim)?;
+        Ok(cloud)
+    }
 }

@@ -35,8 +35,8 @@ mod bake;
 mod dense;
 pub mod prepared;
 
-pub use bake::{BakeParts, bake};
-pub use dense::{DenseCloud, DenseRest, DenseState, ExportError, FrameParts};
+pub use bake::{BakeJob, BakeParts, Baked, bake};
+pub use dense::{DenseCloud, DenseJob, DenseRest, DenseState, ExportError, FrameParts};
 
 use std::ops::ControlFlow;
 

@@ -42,6 +42,7 @@
 //! ```
 //! use bevy_point_springs::core::scene::Scene;
 //! use bevy_point_springs::prelude::*;
+//! use bevy_point_springs::core::cloud::io::{PlyEncoding, write_ply};
 //!
 //! let (scene, base) = Scene::load("assets/scenes/hat.ron".as_ref()).unwrap();
 //! let mut run = scene.prepare(&base).unwrap(); // normals, §3, §4, §5 coefficients

@@ -42,6 +42,7 @@
 //! use bevy_point_springs::core::cloud::shapes::fibonacci_sphere;
 //! use bevy_point_springs::core::simplify::{SimplifyConfig, simplify};
 //! use bevy_point_springs::prelude::*;
+//! use bevy_point_springs::core::solver::{Anchor, Integrator, Solver, SpringMaterial};
 //! use glam::Vec3;
 //!
 //! let dense = fibonacci_sphere(3203, 1.0);

@@ -8,6 +8,7 @@
 //! ```no_run
 //! use bevy::prelude::*;
 //! use bevy_point_springs::prelude::*;
+//! use bevy_point_springs::plugin::SurfaceContactPlugin;
 //! use bevy_rapier3d::prelude::*;
 //!
 //! App::new().add_plugins((

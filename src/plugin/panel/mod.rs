@@ -40,6 +40,10 @@ pub struct PointSpringsPanelPlugin;
 
 impl Plugin for PointSpringsPanelPlugin {
     fn build(&self, app: &mut App) {
+        // Left out of a headless app, unless it brought egui itself.
+        if !(super::has_renderer(app) || app.is_plugin_added::<EguiPlugin>()) {
+            return;
+        }
         if !app.is_plugin_added::<EguiPlugin>() {
             app.add_plugins(EguiPlugin::default());
         }

@@ -13,9 +13,9 @@ use std::time::{Duration, Instant};
 use bevy::prelude::*;
 use bevy_point_springs::core::cloud::shapes::fibonacci_sphere;
 use bevy_point_springs::core::solver::Anchor;
+use bevy_point_springs::plugin::{SurfaceAnchors, SurfaceHealth, SurfaceStepper};
 use bevy_point_springs::prelude::{
-    DeformableSurface, SimplifyConfig, SimulationPoints, SurfaceAnchors, SurfaceConfig,
-    SurfaceHealth, SurfaceStatus, SurfaceStepper,
+    DeformableSurface, SimplifyConfig, SimulationPoints, SurfaceConfig, SurfaceStatus,
 };
 use serde::Serialize;
 
@@ -241,7 +241,7 @@ fn prepare_all(app: &mut App, entities: &[Entity]) -> Result<(), Failure> {
             .iter()
             .find(|s| matches!(s, SurfaceStatus::Failed(_)))
         {
-            return Err(Failure::bad_input(why.clone()));
+            return Err(Failure::bad_input(why.to_string()));
         }
         if statuses.iter().all(SurfaceStatus::is_ready) {
             return Ok(());

@@ -298,7 +298,7 @@ fn prepare_ecs(app: &mut App, scene: &Scene, cloud: &PointCloud) -> Result<(Enti
     }
     let ms_prepare = start.elapsed().as_secs_f64() * 1e3;
     if let Some(SurfaceStatus::Failed(message)) = app.world().get::<SurfaceStatus>(entity) {
-        return Err(Failure::bad_input(message.clone()));
+        return Err(Failure::bad_input(message.to_string()));
     }
     Ok((entity, ms_prepare))
 }
@@ -306,7 +306,7 @@ fn prepare_ecs(app: &mut App, scene: &Scene, cloud: &PointCloud) -> Result<(Enti
 /// Steps the ECS's `entity` has taken.
 fn ecs_steps(app: &App, entity: Entity) -> u64 {
     app.world()
-        .get::<bevy_point_springs::prelude::SurfaceStepper>(entity)
+        .get::<bevy_point_springs::plugin::SurfaceStepper>(entity)
         .map_or(0, |s| s.diagnostics().steps)
 }
 

@@ -33,6 +33,8 @@
 //! A point whose fan collapses while running (its area vector shorter than
 //! [`DEGENERATE_FAN`] of the fan's size) exerts no force that step.
 
+use std::sync::Arc;
+
 use glam::{DVec3, Vec3};
 use serde::{Deserialize, Serialize};
 
@@ -302,6 +304,18 @@ pub(crate) struct Curvatures {
     modulus: Vec<f32>,
     poisson: Vec<f32>,
     damping: Vec<f32>,
+    /// The rest residual of each fitted neighbour's height.
+    rest_residual: Vec<f32>,
+    /// The stabilisation's stiffness over the modulus, γ·A/ℓ⁴, per point.
+    hourglass: Vec<f32>,
+    /// What [`Self::new`] computes once and nothing changes afterwards, shared between
+    /// copies: a copy of a surface's springs (a bake taken off the tick) does not copy it.
+    fixed: Arc<FixedTables>,
+}
+
+/// The larger tables of [`Curvatures`] that are fixed once it is built.
+#[derive(Debug, Clone, Default, PartialEq)]
+struct FixedTables {
     /// Per fitted neighbour: the fit's residual projector's row I − ΦP over the point's
     /// neighbours is built from `p_full` and `phi`.
     p_full: Vec<[f32; 5]>,
@@ -311,17 +325,14 @@ pub(crate) struct Curvatures {
     /// and the fitted height's share of its force), so that a product is two 8-wide passes.
     gather_row: Vec<[f64; 8]>,
     scatter_row: Vec<[f64; 8]>,
-    /// The rest residual of each fitted neighbour's height.
-    rest_residual: Vec<f32>,
-    /// The stabilisation's stiffness over the modulus, γ·A/ℓ⁴, per point.
-    hourglass: Vec<f32>,
     /// Per point, the implicit step's matrix over its stencil per unit of modulus: with
     /// M = A·WᵀK̂W + (γ·A/ℓ⁴)·(I − ΦP) over its n neighbours' heights (K̂: the plate's form
-    /// of unit stiffness), its pairs' entries in [`Self::pairs`]'s order (Mₐ_b for a < b,
-    /// then each neighbour's with the centre, minus M's column sums: n·(n + 1)/2 from
-    /// `pair_start`), and its diagonal entries (each Mⱼⱼ, then the centre's 1ᵀM1: n + 1
-    /// from `fit_start[c] + c`). They depend on the rest shape alone (the modulus scales
-    /// them), so the preconditioner reads its blocks rather than computing them every step.
+    /// of unit stiffness), its pairs' entries in [`Curvatures::pairs`]'s order (Mₐ_b for
+    /// a < b, then each neighbour's with the centre, minus M's column sums: n·(n + 1)/2
+    /// from `pair_start`), and its diagonal entries (each Mⱼⱼ, then the centre's 1ᵀM1:
+    /// n + 1 from `fit_start[c] + c`). They depend on the rest shape alone (the modulus
+    /// scales them), so the preconditioner reads its blocks rather than computing them
+    /// every step.
     pair_values: Vec<f64>,
     pair_start: Vec<u32>,
     diagonal_values: Vec<f64>,
@@ -346,8 +357,11 @@ impl Curvatures {
         let mut part = Self {
             fan_start: vec![0],
             fit_start: vec![0],
-            pair_start: vec![0],
             ..Self::default()
+        };
+        let mut fixed = FixedTables {
+            pair_start: vec![0],
+            ..FixedTables::default()
         };
         for (at, s) in specs.iter().enumerate() {
             let bad = |what| SolverError::InvalidCurvature { point: at, what };
@@ -428,20 +442,20 @@ impl Curvatures {
             let mut all = 0.0;
             for a in 0..m {
                 let diagonal = entry(a, a);
-                part.diagonal_values.push(diagonal);
+                fixed.diagonal_values.push(diagonal);
                 column_sums[a] += diagonal;
                 all += diagonal;
                 for b in a + 1..m {
                     let e = entry(a, b);
-                    part.pair_values.push(e);
+                    fixed.pair_values.push(e);
                     column_sums[a] += e;
                     column_sums[b] += e;
                     all += 2.0 * e;
                 }
             }
-            part.diagonal_values.push(all);
-            part.pair_values.extend(column_sums.iter().map(|s| -s));
-            part.pair_start.push(part.pair_values.len() as u32);
+            fixed.diagonal_values.push(all);
+            fixed.pair_values.extend(column_sums.iter().map(|s| -s));
+            fixed.pair_start.push(fixed.pair_values.len() as u32);
             for ((w, q), r) in s.weights.iter().zip(&pf).zip(&phi) {
                 let mut gather = [0.0f64; 8];
                 let mut scatter = [0.0f64; 8];
@@ -453,11 +467,11 @@ impl Curvatures {
                     gather[3 + k] = f64::from(q[k]);
                     scatter[3 + k] = f64::from(r[k]);
                 }
-                part.gather_row.push(gather);
-                part.scatter_row.push(scatter);
+                fixed.gather_row.push(gather);
+                fixed.scatter_row.push(scatter);
             }
-            part.p_full.extend(pf);
-            part.phi.extend(phi);
+            fixed.p_full.extend(pf);
+            fixed.phi.extend(phi);
             part.point.push(s.point);
             part.fan.extend_from_slice(&s.fan);
             part.fan_start.push(part.fan.len() as u32);
@@ -471,6 +485,7 @@ impl Curvatures {
             part.poisson.push(s.poisson);
             part.damping.push(s.damping);
         }
+        part.fixed = Arc::new(fixed);
         Ok(part)
     }
 
@@ -492,7 +507,7 @@ impl Curvatures {
     /// neighbour).
     fn residual(&self, c: usize, h: &[f64]) -> Vec<f64> {
         let r = self.fit_start[c] as usize..self.fit_start[c + 1] as usize;
-        let (pf, phi) = (&self.p_full[r.clone()], &self.phi[r]);
+        let (pf, phi) = (&self.fixed.p_full[r.clone()], &self.fixed.phi[r]);
         let coef: [f64; 5] =
             [0, 1, 2, 3, 4].map(|k| pf.iter().zip(h).map(|(w, h)| f64::from(w[k]) * h).sum());
         phi.iter()
@@ -591,7 +606,10 @@ impl Curvatures {
             let p = self.point[c] as usize;
             let (fit, weights) = self.fit_of(c);
             let range = self.fit_start[c] as usize..self.fit_start[c + 1] as usize;
-            let (pf, phi) = (&self.p_full[range.clone()], &self.phi[range.clone()]);
+            let (pf, phi) = (
+                &self.fixed.p_full[range.clone()],
+                &self.fixed.phi[range.clone()],
+            );
             let rest_residual = &self.rest_residual[range];
             let kh = self.stab_stiffness(c);
             // One pass for the neighbours' offsets (kept), the curvature S, its rate and the
@@ -704,7 +722,10 @@ impl Curvatures {
         let centre = p[at];
         let range = self.fit_start[c] as usize..self.fit_start[c + 1] as usize;
         let fit = &self.fit[range.clone()];
-        let (gather, scatter) = (&self.gather_row[range.clone()], &self.scatter_row[range]);
+        let (gather, scatter) = (
+            &self.fixed.gather_row[range.clone()],
+            &self.fixed.scatter_row[range],
+        );
         // Pass 1: the curvature change J·p and the fit's coefficients P·Jₕ·p together; the
         // heights are kept for pass 2 (a fit has at most MAX_FIT_POINTS).
         let mut heights = [0.0f64; MAX_FIT_POINTS];
@@ -776,7 +797,7 @@ impl Curvatures {
     pub(crate) fn diagonal_entries(&self, c: usize, scale: f64, mut f: impl FnMut(u32, f64)) {
         let factor = scale * self.modulus(c);
         let range = self.fit_start[c] as usize + c..self.fit_start[c + 1] as usize + c + 1;
-        for (j, e) in self.stencil(c).zip(&self.diagonal_values[range]) {
+        for (j, e) in self.stencil(c).zip(&self.fixed.diagonal_values[range]) {
             f(j, factor * e);
         }
     }
@@ -788,7 +809,8 @@ impl Curvatures {
 
     /// Point `c`'s pairs' entries per unit of modulus, in [`Self::pairs`]'s order.
     pub(crate) fn pair_values(&self, c: usize) -> &[f64] {
-        &self.pair_values[self.pair_start[c] as usize..self.pair_start[c + 1] as usize]
+        &self.fixed.pair_values
+            [self.fixed.pair_start[c] as usize..self.fixed.pair_start[c + 1] as usize]
     }
 
     /// Point `c`'s flexural rigidity D, which scales its matrix.
@@ -839,7 +861,7 @@ impl Curvatures {
             let factor = b.scale * self.modulus(c);
             let range = self.fit_start[c] as usize + c..self.fit_start[c + 1] as usize + c + 1;
             let stencil = self.stencil(c);
-            for (j, e) in stencil.zip(&self.diagonal_values[range]) {
+            for (j, e) in stencil.zip(&self.fixed.diagonal_values[range]) {
                 add(j as usize, b.normal, factor * e);
             }
         }
