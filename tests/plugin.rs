@@ -1117,3 +1117,53 @@ fn a_pinned_point_stays_put_and_falls_again_when_freed() {
         "{refused:?}"
     );
 }
+
+/// Issue 37: pins declared before the first tick. An observer of `SurfaceReady` runs as
+/// the preparation is put in, before any tick: the points it pins never move, even on a
+/// surface that falls from the first tick on.
+#[test]
+fn points_pinned_when_the_surface_is_ready_never_move() {
+    let mut app = create_app(&assets_dir(), TICK);
+    let config = SurfaceConfig {
+        simplify: SimplifyConfig::target(100),
+        ..default()
+    };
+    let sphere = app
+        .world_mut()
+        .spawn(DeformableSurface::cloud(
+            shapes::fibonacci_sphere(1000, 1.0),
+            config,
+        ))
+        .observe(|ready: On<SurfaceReady>, mut pins: SurfacePins| {
+            let held = pins.pin_near(ready.entity, Vec3::Y, 0.3).unwrap();
+            assert!(held > 0);
+        })
+        .id();
+    settle(&mut app, &[sphere]);
+    let rest = app
+        .world()
+        .get::<SurfaceNetwork>(sphere)
+        .unwrap()
+        .positions
+        .clone();
+    let held: Vec<usize> = (0..rest.len())
+        .filter(|&i| rest[i].distance(Vec3::Y) <= 0.3)
+        .collect();
+    assert!(!held.is_empty());
+    for _ in 0..30 {
+        app.update();
+    }
+    let points = app.world().get::<SimulationPoints>(sphere).unwrap();
+    let work = app
+        .world()
+        .get::<bevy_point_springs::plugin::SurfaceWork>(sphere);
+    assert!(work.unwrap().steps >= 30);
+    for &i in &held {
+        assert_eq!(points.position(i), rest[i], "pinned point {i} moved");
+    }
+    let lowest = points
+        .iter_positions()
+        .map(|p| p.y)
+        .fold(f32::MAX, f32::min);
+    assert!(lowest < -1.05, "the rest did not hang down: {lowest}");
+}

@@ -858,3 +858,66 @@ fn a_bake_of_a_hundred_thousand_points_does_not_hold_up_the_tick() {
     // What the test guards against: on the tick, the bake would lengthen it far more.
     assert!(on_tick_ms > 5.0, "{on_tick_ms} ms");
 }
+
+/// A saved game loaded onto a surface while a bake of it runs drops the bake: the bake was
+/// taken from the state the load replaced, and must not overwrite the loaded one.
+#[test]
+fn a_load_drops_a_bake_under_way() {
+    let dir = std::env::temp_dir().join(format!("point-springs-superseded-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("game.save");
+    let mut app = create_app(&assets_dir(), TICK);
+    let sphere = named_gas_sphere(&mut app);
+    app.update();
+    app.world_mut()
+        .write_message(SaveGameMessage::Save { path: file.clone() });
+    app.update();
+    assert!(saved_outcomes(&mut app)[0].result.is_ok());
+    let saved = app
+        .world()
+        .get::<SimulationPoints>(sphere)
+        .unwrap()
+        .positions();
+    // Squeezed out of that shape, then baked and loaded in the same frame.
+    let (_, top) = nearest_point(&app, sphere, Vec3::Y);
+    app.world_mut().write_message(GrabMessage::Start {
+        key: 3,
+        surface: sphere,
+        at: top,
+    });
+    app.update();
+    app.world_mut().write_message(GrabMessage::Move {
+        key: 3,
+        target: top - Vec3::Y * 0.3,
+    });
+    for _ in 0..20 {
+        app.update();
+    }
+    app.world_mut().write_message(GrabMessage::End { key: 3 });
+    app.world_mut()
+        .write_message(ModelMessage::Bake { surface: sphere });
+    app.world_mut()
+        .write_message(SaveGameMessage::Load { path: file.clone() });
+    app.update();
+    assert!(saved_outcomes(&mut app)[0].result.is_ok());
+    let outcome = outcomes_of(&mut app, 1);
+    assert_eq!(outcome[0].result, Err(ModelError::Superseded(sphere)));
+    // The loaded shape runs on, not the squeezed one the bake measured.
+    assert!(
+        app.world()
+            .get::<bevy_point_springs::plugin::SurfaceBaked>(sphere)
+            .is_none()
+    );
+    let now = app
+        .world()
+        .get::<SimulationPoints>(sphere)
+        .unwrap()
+        .positions();
+    let apart = now
+        .iter()
+        .zip(&saved)
+        .map(|(a, b)| a.distance(*b))
+        .fold(0.0, f32::max);
+    assert!(apart < 0.05, "{apart} from the loaded shape");
+    std::fs::remove_dir_all(&dir).unwrap();
+}

@@ -372,7 +372,10 @@ pub struct StepOnce;
 #[derive(Component, Debug, Clone, Default, Deref, DerefMut)]
 pub struct SimulationPoints(pub PointState);
 
-/// The simulation points' masses (eq 1) and which of them are pinned.
+/// The simulation points' masses (each a share of the dense surface's area times the
+/// density: see [`SpringNetwork::share_dense_area`](crate::core::network::SpringNetwork::share_dense_area))
+/// and which of them are pinned. Pin and free points with [`SurfacePins`](super::SurfacePins),
+/// which also stops them.
 #[derive(Component, Debug, Clone, Default, Deref, DerefMut)]
 pub struct SurfaceMasses(pub Masses);
 

@@ -9,9 +9,10 @@
 //! copied) and runs on Bevy's async compute pool while the surface runs on; its outcome
 //! comes in a later tick. A finished bake puts the surface in the shape it had when the
 //! request was read, still, with that shape as its rest shape: the ticks in between are
-//! dropped. A bake whose surface was prepared again or restored from a save meanwhile is
-//! dropped ([`ModelError::Superseded`]), and one surface bakes once at a time
-//! ([`ModelError::Busy`]).
+//! dropped. A bake whose surface was prepared again, or had a saved game loaded onto it,
+//! meanwhile is dropped ([`ModelError::Superseded`]), and one surface bakes once at a time
+//! ([`ModelError::Busy`]). A despawned surface's work is dropped with it, without an
+//! outcome. A reset sent while a bake runs is undone when the bake lands.
 //!
 //! ```no_run
 //! use bevy::prelude::*;
@@ -104,7 +105,7 @@ pub enum ModelError {
     /// A bake of the surface is already under way.
     #[error("{0} is already being baked")]
     Busy(Entity),
-    /// The surface was prepared again, restored from a save, or despawned while its bake
+    /// The surface was prepared again, or had a saved game loaded onto it, while its bake
     /// ran: the bake was dropped.
     #[error("{0} changed while it was being baked: the bake was dropped")]
     Superseded(Entity),
@@ -168,6 +169,8 @@ struct Running {
     task: Task<Result<Done, ModelError>>,
     /// A bake's: the network it was taken from (the surface must still have it).
     network: Option<Arc<SpringNetwork>>,
+    /// A bake's: a saved game was loaded onto the surface meanwhile.
+    superseded: bool,
 }
 
 /// A surface's bakes and exports under way (dropping it drops them).
@@ -178,6 +181,20 @@ impl ModelWork {
     fn baking(&self) -> bool {
         self.0.iter().any(|r| r.network.is_some())
     }
+}
+
+/// A saved game loaded onto `surface` drops the bakes under way on it
+/// ([`ModelError::Superseded`]): they were taken from the state the load replaced.
+pub(crate) fn supersede_bakes(commands: &mut Commands, surface: Entity) {
+    commands
+        .entity(surface)
+        .queue(|mut entity: EntityWorldMut| {
+            if let Some(mut work) = entity.get_mut::<ModelWork>() {
+                for running in work.0.iter_mut().filter(|r| r.network.is_some()) {
+                    running.superseded = true;
+                }
+            }
+        });
 }
 
 /// Reads the tick's modelling requests, in the order they were sent: resets are done,
@@ -285,6 +302,7 @@ fn carry_out(
                 request: request.clone(),
                 task,
                 network: Some(network.0.clone()),
+                superseded: false,
             }))
         }
         ModelMessage::Export { path, .. } => {
@@ -300,6 +318,7 @@ fn carry_out(
                 request: request.clone(),
                 task,
                 network: None,
+                superseded: false,
             }))
         }
         ModelMessage::Reset { .. } => {
@@ -352,7 +371,8 @@ pub(crate) fn finish_model_work(
         work.0
             .retain_mut(|running| match check_ready(&mut running.task) {
                 Some(result) => {
-                    finished.push((running.request.clone(), running.network.take(), result));
+                    let from = running.network.take().filter(|_| !running.superseded);
+                    finished.push((running.request.clone(), from, result));
                     false
                 }
                 None => true,

@@ -455,6 +455,7 @@ fn load(
             None => commands.entity(r.entity).remove::<SurfaceBaked>(),
         };
         baked_marks.insert(r.entity, r.baked);
+        super::model::supersede_bakes(commands, r.entity);
         grabs.forget_surface(r.entity);
         for (key, held) in r.grabs.drain(..) {
             grabs.hold(key, r.entity, held);

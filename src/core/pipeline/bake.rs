@@ -25,8 +25,9 @@ pub struct BakeParts<'a> {
 }
 
 /// Makes a surface's current shape its rest shape, returning the new network: rest
-/// positions, normals, spring rest lengths and masses (eq 1 with `density`, from the
-/// triangles' current areas) measured anew; the springs and masses set from them
+/// positions, normals, spring rest lengths and masses (each point's share of the dense
+/// area grown or shrunk with its triangles' areas, see [`SpringNetwork::reshaped`])
+/// measured anew; the springs and masses set from them
 /// (stiffness, damping, plasticity, pins and anchors kept), every velocity zero, a gas's
 /// rest volume the current one; the dense surface's rest positions and normals its
 /// deformed ones, with the transfer computed anew. Run without forces afterwards, nothing
