@@ -368,6 +368,11 @@ fn preparing_again_keeps_the_old_surface_running_until_the_new_one_is_ready() {
     });
     app.update();
     assert!(app.world().resource::<Grabs>().get(5).is_some());
+    // A run-time material: preparing again keeps it (the component is its one owner).
+    app.world_mut()
+        .get_mut::<SurfaceMaterial>(sphere)
+        .unwrap()
+        .yield_strain = 0.07;
     let mut config = app.world().get::<DeformableSurface>(sphere).unwrap().config;
     config.simplify.target = Some(400);
     app.world_mut()
@@ -395,6 +400,8 @@ fn preparing_again_keeps_the_old_surface_running_until_the_new_one_is_ready() {
     assert!(app.world().resource::<Grabs>().get(5).is_none());
     assert!(points(&app) >= 400, "{} points", points(&app));
     assert!(status(&app, sphere).is_ready());
+    let material = app.world().get::<SurfaceMaterial>(sphere).unwrap();
+    assert_eq!(material.yield_strain, 0.07);
     let ready = SurfaceReady {
         entity: sphere,
         again: true,

@@ -89,8 +89,10 @@ pub enum SurfaceSource {
 pub struct DeformableSurface {
     /// Where the dense cloud comes from.
     pub source: SurfaceSource,
-    /// How it is prepared and simulated (a scene's own settings replace it once the scene
-    /// has loaded).
+    /// How it is prepared (a scene's own settings replace it once the scene has loaded), and
+    /// the material and solver settings it starts with. Once it is ready, those run-time
+    /// settings are owned by [`SurfaceMaterial`] and [`SurfaceStepper`]: change them there
+    /// (a [`PrepareAgain`](super::PrepareAgain) keeps them too).
     pub config: SurfaceConfig,
     /// A file that keeps the preparation (see [`Self::with_prepared_file`]).
     pub prepared_file: Option<PathBuf>,

@@ -81,7 +81,9 @@ impl PreparationPool {
 }
 
 /// Prepares a surface again with these settings, from its source: a baked or sculpted
-/// shape is not kept. On a ready surface the old simulation keeps running until the new
+/// shape is not kept. A ready surface keeps its run-time material and solver settings
+/// ([`SurfaceMaterial`], [`SurfaceStepper`], their one owner): change those there; the
+/// settings here give the rest (normals, simplification, network, transfer, gas). On a ready surface the old simulation keeps running until the new
 /// one is ready (with [`PreparationProgress`] present meanwhile), and
 /// [`DeformableSurface::config`] takes the settings then; a surface being prepared takes
 /// the request once it is ready; a pending, loading or failed one starts afresh with these
@@ -205,6 +207,16 @@ fn inputs(
     }
 }
 
+/// What [`start_preparation`] reads and changes of a surface: with its run-time settings
+/// when it runs.
+type StartParts = (
+    Entity,
+    &'static mut DeformableSurface,
+    &'static mut SurfaceStatus,
+    Option<&'static PrepareAgain>,
+    Option<(&'static SurfaceMaterial, &'static SurfaceStepper)>,
+);
+
 /// Starts preparing surfaces whose status is `Pending` (or `Loading`, once their files
 /// are in).
 pub(crate) fn start_preparation(
@@ -213,16 +225,20 @@ pub(crate) fn start_preparation(
     server: Option<Res<AssetServer>>,
     scenes: Option<Res<Assets<SceneAsset>>>,
     clouds: Option<Res<Assets<CloudAsset>>>,
-    mut surfaces: Query<(
-        Entity,
-        &mut DeformableSurface,
-        &mut SurfaceStatus,
-        Option<&PrepareAgain>,
-    )>,
+    mut surfaces: Query<StartParts>,
 ) {
-    for (entity, mut surface, mut status, again) in &mut surfaces {
-        let again = again.map(|a| a.0);
+    for (entity, mut surface, mut status, again, running) in &mut surfaces {
         let background = again.is_some() && status.is_ready();
+        // A running surface's material and solver settings are its components' (their one
+        // owner): preparing again keeps them.
+        let again = again.map(|a| match running.filter(|_| background) {
+            Some((material, stepper)) => SurfaceConfig {
+                material: material.0,
+                solver: *stepper.config(),
+                ..a.0
+            },
+            None => a.0,
+        });
         let fresh = match *status {
             SurfaceStatus::Pending | SurfaceStatus::Loading => true,
             SurfaceStatus::Failed(_) => again.is_some(),

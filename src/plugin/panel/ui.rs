@@ -365,10 +365,11 @@ fn material(ui: &mut egui::Ui, entity: Entity, s: &mut PanelSurfaceItem, world: 
         "creep rate (0: elastic)",
     ));
     if m.bending != s.material.0.bending {
-        let mut config = s.surface.config;
-        config.material = m;
-        config.solver = *s.stepper.config();
-        world.commands.entity(entity).insert(PrepareAgain(config));
+        // Preparing again takes the material (the new bending) from the component.
+        world
+            .commands
+            .entity(entity)
+            .insert(PrepareAgain(s.surface.config));
     }
     if m != s.material.0 {
         s.material.0 = m;
@@ -499,8 +500,6 @@ fn simplification(
         let mut config = s.surface.config;
         config.simplify.target = Some(panel.simulation_points);
         config.simplify.max_diameter = None;
-        config.material = s.material.0;
-        config.solver = *s.stepper.config();
         world.commands.entity(entity).insert(PrepareAgain(config));
     }
     if let Some(failed) = s.failed {
