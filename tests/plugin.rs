@@ -1167,3 +1167,49 @@ fn points_pinned_when_the_surface_is_ready_never_move() {
         .fold(f32::MAX, f32::min);
     assert!(lowest < -1.05, "the rest did not hang down: {lowest}");
 }
+
+/// Issue 37: gravity in world space. A sphere turned upside down falls along its own +Y
+/// (the world's −Y) with `WorldGravity`, and rises (falls along its own −Y) without it.
+#[test]
+fn world_gravity_pulls_a_turned_surface_down() {
+    let mut app = create_app(&assets_dir(), TICK);
+    let flipped = Transform::from_rotation(Quat::from_rotation_x(std::f32::consts::PI));
+    let config = SurfaceConfig {
+        simplify: SimplifyConfig::target(100),
+        ..default()
+    };
+    let surface = || DeformableSurface::cloud(shapes::fibonacci_sphere(1000, 1.0), config);
+    let with = app
+        .world_mut()
+        .spawn((
+            surface(),
+            flipped,
+            GlobalTransform::from(flipped),
+            WorldGravity::default(),
+        ))
+        .id();
+    let without = app
+        .world_mut()
+        .spawn((surface(), flipped, GlobalTransform::from(flipped)))
+        .id();
+    settle(&mut app, &[with, without]);
+    let world_centre = |app: &App, e: Entity| {
+        let points = app.world().get::<SimulationPoints>(e).unwrap();
+        flipped.transform_point(centroid(points))
+    };
+    let start = [world_centre(&app, with), world_centre(&app, without)];
+    for _ in 0..20 {
+        app.update();
+    }
+    let fell = start[0].y - world_centre(&app, with).y;
+    let rose = world_centre(&app, without).y - start[1].y;
+    assert!(fell > 0.05, "fell {fell}");
+    assert!(rose > 0.05, "rose {rose}");
+    let own = app
+        .world()
+        .get::<SurfaceStepper>(with)
+        .unwrap()
+        .config()
+        .gravity;
+    assert!(own.distance(Vec3::Y * 9.81) < 1e-4, "{own}");
+}

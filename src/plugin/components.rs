@@ -342,9 +342,9 @@ pub struct SurfaceTimings {
 }
 
 impl SurfaceTimings {
-    /// Forces, step and transfer: the surface's share of a tick.
+    /// Forces, step, transfer and modelling requests: the surface's share of a tick.
     pub fn tick_ms(&self) -> f32 {
-        self.forces_ms + self.step_ms + self.transfer_ms
+        self.forces_ms + self.step_ms + self.transfer_ms + self.model_ms
     }
 }
 

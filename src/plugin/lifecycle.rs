@@ -162,7 +162,7 @@ pub(crate) fn announce_failures(
         match (status, announced) {
             (SurfaceStatus::Failed(error), false) => {
                 error!("point-springs surface {entity}: {error}");
-                commands.entity(entity).insert(FailureAnnounced);
+                commands.entity(entity).try_insert(FailureAnnounced);
                 commands.trigger(SurfaceFailed {
                     entity,
                     error: error.clone(),
@@ -171,7 +171,7 @@ pub(crate) fn announce_failures(
             }
             (SurfaceStatus::Failed(_), true) | (_, false) => {}
             (_, true) => {
-                commands.entity(entity).remove::<FailureAnnounced>();
+                commands.entity(entity).try_remove::<FailureAnnounced>();
             }
         }
     }

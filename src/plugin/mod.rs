@@ -84,7 +84,7 @@ pub use prepare::{PreparationPool, PrepareAgain, PrepareAgainFailed};
 pub use save::{
     SAVED_GAME_MAGIC, SaveGameError, SaveGameMessage, SaveGameOutcome, SaveName, SurfaceBaked,
 };
-pub use world::{SurfacePins, WorldSurfaceError, WorldSurfaces};
+pub use world::{SurfacePins, WorldGravity, WorldSurfaceError, WorldSurfaces};
 
 /// All of the crate's plugins that the enabled features bring, on one schedule: the
 /// simulation ([`PointSpringsPlugin`]); with `render`, surfel drawing (left out where the
@@ -92,7 +92,8 @@ pub use world::{SurfacePins, WorldSurfaceError, WorldSurfaces};
 /// (left out without a renderer unless the app brings egui itself); with `rapier`,
 /// contacts with bevy_rapier3d's colliders (which needs
 /// rapier's plugin on the same schedule). Leave one out with
-/// `PointSpringsPlugins::default().build().disable::<P>()`.
+/// `PointSpringsPlugins::default().build().disable::<P>()`. Add it after `DefaultPlugins`:
+/// the drawing plugins look for the renderer when they are built.
 #[derive(Debug, Clone)]
 pub struct PointSpringsPlugins {
     schedule: InternedScheduleLabel,
@@ -195,6 +196,7 @@ impl Plugin for PointSpringsPlugin {
             .register_type::<SaveName>()
             .register_type::<SurfaceMeeting>()
             .register_type::<SurfaceMeetingReport>()
+            .register_type::<WorldGravity>()
             .add_message::<GrabMessage>()
             .add_message::<SaveGameMessage>()
             .add_message::<SaveGameOutcome>()
@@ -232,6 +234,7 @@ impl Plugin for PointSpringsPlugin {
                         attach::hold_attachments,
                         simulate::drive_timelines,
                         simulate::apply_materials,
+                        world::apply_world_gravity,
                         simulate::accumulate_forces,
                         #[cfg(feature = "rapier")]
                         meet::read_collision_groups,

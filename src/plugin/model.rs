@@ -234,7 +234,7 @@ pub(crate) fn apply_model_requests(
         }
     }
     for (surface, work) in fresh {
-        commands.entity(surface).insert(work);
+        commands.entity(surface).try_insert(work);
     }
 }
 
@@ -378,7 +378,7 @@ pub(crate) fn finish_model_work(
                 None => true,
             });
         if work.0.is_empty() {
-            commands.entity(entity).remove::<ModelWork>();
+            commands.entity(entity).try_remove::<ModelWork>();
         }
         if finished.is_empty() {
             continue;
@@ -428,7 +428,7 @@ pub(crate) fn finish_model_work(
                     }
                     // A saved game carries a baked surface's rest shape.
                     let density = material.density;
-                    commands.entity(entity).insert(SurfaceBaked { density });
+                    commands.entity(entity).try_insert(SurfaceBaked { density });
                     Ok(())
                 }
             });

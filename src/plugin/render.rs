@@ -100,6 +100,16 @@ impl Plugin for SurfelRenderPlugin {
         super::view::add_systems(app);
         super::gpu_transfer::build(app);
     }
+
+    fn finish(&self, app: &mut App) {
+        // Added before the renderer, `build` found none: say so now that the log is up.
+        if super::has_renderer(app) && !app.world().contains_resource::<SurfelBatches>() {
+            warn!(
+                "point-springs: SurfelRenderPlugin was added before DefaultPlugins: surfaces \
+                 are not drawn (add PointSpringsPlugins after DefaultPlugins)"
+            );
+        }
+    }
 }
 
 /// The material of surfels: StandardMaterial's shading with the surfel vertex shader.

@@ -2,7 +2,8 @@
 //! points, forces, gravity and dense surface are local to its entity's transform), while a
 //! game thinks in the world's: [`WorldSurfaces`] pushes on points and reads the deformed
 //! surface in world coordinates, through the surface's [`GlobalTransform`], and
-//! [`SurfacePins`] pins points (by index, or near a world position) and frees them.
+//! [`SurfacePins`] pins points (by index, or near a world position) and frees them, and
+//! [`WorldGravity`] keeps a surface's gravity pointing the world's way however it turns.
 //!
 //! ```
 //! use bevy::prelude::*;
@@ -24,7 +25,9 @@
 use bevy::ecs::system::SystemParam;
 use bevy::prelude::*;
 
-use super::components::{DenseSurface, SimulationPoints, SurfaceForces, SurfaceMasses};
+use super::components::{
+    DenseSurface, SimulationPoints, SurfaceForces, SurfaceMasses, SurfaceSleep, SurfaceStepper,
+};
 use crate::core::solver::hold_still;
 
 /// Why a [`WorldSurfaces`] call did nothing.
@@ -270,5 +273,48 @@ impl SurfacePins<'_, '_> {
     pub fn is_pinned(&self, surface: Entity, i: usize) -> Option<bool> {
         let (_, _, masses) = self.surfaces.get(surface).ok()?;
         (i < masses.len()).then(|| masses.is_pinned(i))
+    }
+}
+
+/// Gravity in world coordinates (m/s²) for a surface that turns: each tick the plugin sets
+/// the surface's own gravity ([`SolverConfig::gravity`](crate::core::solver::SolverConfig),
+/// in its own coordinates) to this one seen from the surface's transform, so that a surface
+/// turned upside down still falls down. Without it, gravity turns with the surface.
+#[derive(Component, Debug, Clone, Copy, PartialEq, Reflect)]
+#[reflect(Component, Debug)]
+pub struct WorldGravity(pub Vec3);
+
+impl Default for WorldGravity {
+    /// Earth's, along −Y.
+    fn default() -> Self {
+        Self(Vec3::NEG_Y * 9.81)
+    }
+}
+
+/// Sets each [`WorldGravity`] surface's own gravity from its transform; a surface whose
+/// gravity changed is woken.
+pub(crate) fn apply_world_gravity(
+    mut surfaces: Query<(
+        Entity,
+        &WorldGravity,
+        &GlobalTransform,
+        &mut SurfaceStepper,
+        &mut SurfaceSleep,
+    )>,
+) {
+    for (entity, gravity, transform, mut stepper, mut sleep) in &mut surfaces {
+        let local = local_force(transform, gravity.0);
+        if stepper.config().gravity == local {
+            continue;
+        }
+        match stepper.set_gravity(local) {
+            Ok(()) => {
+                *sleep = SurfaceSleep {
+                    acted: true,
+                    ..SurfaceSleep::default()
+                };
+            }
+            Err(e) => warn!("point-springs surface {entity}: world gravity not applied: {e}"),
+        }
     }
 }

@@ -151,6 +151,17 @@ impl Stepper {
         Ok(())
     }
 
+    /// Sets gravity (eq 4) alone, keeping the other settings and what the stepper has
+    /// measured of them (gravity does not change the stable step); a value that is not
+    /// finite is refused.
+    pub fn set_gravity(&mut self, gravity: Vec3) -> Result<(), SolverError> {
+        if !gravity.is_finite() {
+            return Err(SolverError::InvalidConfig("gravity must be finite"));
+        }
+        self.config.gravity = gravity;
+        Ok(())
+    }
+
     /// Running totals.
     pub fn diagnostics(&self) -> &Diagnostics {
         &self.diagnostics
