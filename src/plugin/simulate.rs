@@ -26,7 +26,7 @@ use bevy::prelude::*;
 use bevy::tasks::ComputeTaskPool;
 
 use crate::core::pipeline::DenseCloud;
-use crate::core::solver::{PointState, SolverError, SpringMaterial};
+use crate::core::solver::{Masses, PointState, SolverError, SpringMaterial};
 use crate::core::transfer::TransferError;
 
 use super::components::{
@@ -297,12 +297,8 @@ pub(crate) fn transfer_tick(mut surfaces: Query<TransferParts>) {
         let start = Instant::now();
         // Marked changed only where the drawn surface changes (see `follow_counted`).
         let cloud = dense.bypass_change_detection();
-        let refit = match cloud.hold(masses) {
-            Ok(refit) => refit,
-            Err(e) => {
-                fail(&mut status, transfer_failed("holding the pins", e));
-                continue;
-            }
+        let Some(refit) = hold_or_fail(cloud, masses, &mut status) else {
+            continue;
         };
         let steps = stepper.diagnostics().steps;
         let inserted = match cloud.maintain(points, steps) {
@@ -325,6 +321,22 @@ pub(crate) fn transfer_tick(mut surfaces: Query<TransferParts>) {
             dense.set_changed();
         }
         timings.transfer_ms = ms_since(start);
+    }
+}
+
+/// [`DenseCloud::hold`] with `masses`' pins: whether the coefficients were refitted, or
+/// `None` when it failed (and failed the surface).
+fn hold_or_fail(
+    dense: &mut DenseCloud,
+    masses: &Masses,
+    status: &mut SurfaceStatus,
+) -> Option<bool> {
+    match dense.hold(masses) {
+        Ok(refit) => Some(refit),
+        Err(e) => {
+            fail(status, transfer_failed("holding the pins", e));
+            None
+        }
     }
 }
 
@@ -370,12 +382,8 @@ pub(crate) fn transfer_frame(time: Option<Res<Time<Fixed>>>, mut surfaces: Query
         if status.is_ready() && in_view.0 && due {
             let start = Instant::now();
             let cloud = dense.bypass_change_detection();
-            let refit = match cloud.hold(masses) {
-                Ok(refit) => refit,
-                Err(e) => {
-                    fail(&mut status, transfer_failed("holding the pins", e));
-                    continue;
-                }
+            let Some(refit) = hold_or_fail(cloud, masses, &mut status) else {
+                continue;
             };
             let drawn = if settings.transfer == TransferTiming::Interpolated {
                 blend(previous.bypass_change_detection(), points, along)

@@ -115,12 +115,6 @@ impl BakeJob {
         }
     }
 
-    /// The network the bake started from (to tell whether the surface is still the one it
-    /// was taken from).
-    pub fn network(&self) -> &Arc<SpringNetwork> {
-        &self.network
-    }
-
     /// Measures the baked rest shape and builds every part anew.
     pub fn run(self) -> Result<Baked, PrepareError> {
         let Self {

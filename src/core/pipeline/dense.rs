@@ -510,11 +510,6 @@ pub struct DenseJob {
 }
 
 impl DenseJob {
-    /// The simulation state it carries.
-    pub fn simulation(&self) -> &PointState {
-        &self.sim
-    }
-
     /// The dense surface following the job's simulation state, and that state.
     fn followed(self) -> Result<(DenseCloud, PointState), TransferError> {
         let mut cloud = DenseCloud {
