@@ -1,10 +1,8 @@
-//! The solver (eq 2–6): analytic checks, hard cases, the guard and the cloth benchmark.
+//! The solver (eq 2–6): analytic checks, hard cases and the guard. (The cloth benchmark
+//! against the straightforward loop is `bench/tests/baselines.rs`.)
 
 use std::f64::consts::PI;
 
-use bevy_point_springs::core::fixtures::cloth::{
-    CLOTH_DT, CLOTH_SIZE, CLOTH_STEPS, ReferenceCloth, cloth_grid, max_sag,
-};
 use bevy_point_springs::core::solver::{
     DampingModel, ImplicitSolver, Instability, InstabilityResponse, Integrator, STANDARD_GRAVITY,
     Solver, SolverConfig, SolverError, SpringSpec, SubstepPolicy,
@@ -391,40 +389,6 @@ fn a_failing_explicit_step_falls_back_to_implicit() {
 }
 
 // ---------------------------------------------------------------------------------------
-// The cloth benchmark.
-
-#[test]
-fn cloth_grid_sag_matches_the_straightforward_loop() {
-    let grid = cloth_grid(CLOTH_SIZE).unwrap();
-    assert_eq!(grid.springs.len(), 5826);
-    let mut solver = grid.solver().unwrap();
-    let mut reference = ReferenceCloth::new(&grid);
-    for _ in 0..CLOTH_STEPS {
-        let r = solver.step(CLOTH_DT).unwrap();
-        assert!(r.finite && !r.recovered && r.substeps == 1);
-        reference.step(CLOTH_DT);
-    }
-    let sag = max_sag(&grid.positions, &solver.positions());
-    let reference_sag = max_sag(&grid.positions, &reference.x);
-    assert!(sag > 1.0, "the cloth fell {sag}");
-    assert!(
-        (sag - reference_sag).abs() < 1e-3,
-        "{sag} vs {reference_sag}"
-    );
-    let worst = solver
-        .positions()
-        .iter()
-        .zip(&reference.x)
-        .map(|(a, b)| a.distance(*b))
-        .fold(0.0, f32::max);
-    assert!(worst < 1e-3, "positions differ by {worst}");
-    // The fixed corners stayed put.
-    for i in grid.fixed {
-        assert_eq!(solver.position(i as usize), grid.positions[i as usize]);
-    }
-}
-
-// ---------------------------------------------------------------------------------------
 // Random networks.
 
 mod random_networks {
@@ -655,7 +619,7 @@ fn the_pins_take_what_the_surface_pulls_them_with() {
 /// the body's inverse mass times the corners' step masses, is past 2.
 #[test]
 fn a_light_body_carrying_a_cloth_is_solved_with_it() {
-    use bevy_point_springs::core::fixtures::cloth::cloth_grid;
+    use bevy_point_springs::core::solver::cloth::cloth_grid;
     use bevy_point_springs::core::solver::contact::{CarriedPoint, StepBody};
     use glam::{DVec3, Mat3};
     const BODY_MASS: f32 = 0.25;

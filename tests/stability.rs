@@ -1,7 +1,7 @@
 //! The solver on hard cases: stiffness of a million, a poke of 10^4 g, coincident points,
 //! bad time steps; anchors and drag while running; bad input as typed errors.
 
-use bevy_point_springs::core::fixtures::cloth::cloth_grid;
+use bevy_point_springs::core::solver::cloth::cloth_grid;
 use bevy_point_springs::core::solver::{
     Anchor, DampingModel, InstabilityResponse, Integrator, STANDARD_GRAVITY, Solver, SolverConfig,
     SolverError, SpringSpec, SubstepPolicy,

@@ -13,15 +13,17 @@
 //!    ([`simplify::tangent_delaunay`]) that picks the simulation points.
 //! 4. [`network`]: §4.1–4.2, one triangle network over the simulation points, its
 //!    stretch and bend springs and its masses.
-//! 5. [`solver`]: eq 2–6, forces, three integrators, stability guards, and
-//!    [`solver::contact`] for rigid bodies touching the surface.
+//! 5. [`solver`]: eq 2–6, forces, three integrators, stability guards,
+//!    [`solver::contact`] for rigid bodies touching the surface, and the standard cloth
+//!    benchmark's network ([`solver::cloth`]) the solver is tested on.
 //! 6. [`transfer`]: §5, the motion carried back to every dense point with its normal;
 //!    [`transfer::resample`] fills regions the motion stretched.
 //!
 //! [`pipeline`] runs stages 1–4 and owns the state of 5–6 for one surface (the CLI, the
 //! benches and the plugin all call it); [`scene`] describes a whole deformation in a RON
-//! file and runs it headless. `fixtures` (hidden from these docs) holds what the tests
-//! and benches compare against: the benchmark cloth and the paper's literal transfer.
+//! file and runs it headless. The baselines the benchmarks compare against (the
+//! straightforward cloth loop, the paper's literal per-frame transfer) are not here: they
+//! live in the `point-springs-bench` crate (`bench/`).
 
 pub mod cloud;
 pub mod network;
@@ -31,8 +33,5 @@ pub mod scene;
 pub mod simplify;
 pub mod solver;
 pub mod transfer;
-
-#[doc(hidden)]
-pub mod fixtures;
 
 pub use cloud::{Aabb, CloudError, PointCloud};

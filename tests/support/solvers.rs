@@ -4,7 +4,7 @@
 
 use std::f64::consts::PI;
 
-use bevy_point_springs::core::fixtures::cloth::cloth_grid;
+use bevy_point_springs::core::solver::cloth::cloth_grid;
 use bevy_point_springs::core::solver::{
     Integrator, Solver, SolverConfig, SpringSpec, SubstepPolicy,
 };

@@ -1,17 +1,14 @@
 //! Flags that several commands share, each defined once and flattened into the commands'
-//! own `Args`, and the value types and parsers of their options.
+//! own `Args`, and the value types and parsers of their options (those `point-springs-bench`
+//! shares too are in [`crate::flags`]).
 
 use std::path::{Path, PathBuf};
 
 use bevy_point_springs::core::PointCloud;
 use bevy_point_springs::core::cloud::io::{CloudFormat, PlyEncoding, read_cloud, write_ply};
-use bevy_point_springs::core::normals::denoise::Denoise;
-use bevy_point_springs::core::solver::BendingModel;
-use clap::ValueEnum;
 use glam::Vec3;
 
 use crate::failure::Failure;
-use crate::report::{Report, emit};
 
 /// One cloud to read: `FILE [--format F]`.
 #[derive(Debug, clap::Args)]
@@ -81,42 +78,6 @@ impl PlyFlag {
     }
 }
 
-/// `--json`: how a command prints its report.
-#[derive(Debug, clap::Args)]
-pub struct JsonFlag {
-    /// Print JSON instead of text.
-    #[arg(long)]
-    pub json: bool,
-}
-
-impl JsonFlag {
-    /// Prints `report` as the flag asks.
-    pub fn emit(&self, report: &impl Report) -> Result<(), Failure> {
-        emit(report, self.json)
-    }
-}
-
-/// `--denoise` values.
-#[derive(Debug, Clone, Copy, ValueEnum)]
-pub enum DenoiseArg {
-    /// When the cloud measures noisy.
-    Auto,
-    /// Always.
-    On,
-    /// Never.
-    Off,
-}
-
-impl From<DenoiseArg> for Denoise {
-    fn from(d: DenoiseArg) -> Self {
-        match d {
-            DenoiseArg::Auto => Denoise::Auto,
-            DenoiseArg::On => Denoise::On,
-            DenoiseArg::Off => Denoise::Off,
-        }
-    }
-}
-
 /// Parses "x,y,z".
 pub fn parse_vec3(s: &str) -> Result<Vec3, String> {
     let parts: Vec<f32> = s
@@ -126,26 +87,5 @@ pub fn parse_vec3(s: &str) -> Result<Vec3, String> {
     match parts[..] {
         [x, y, z] if x.is_finite() && y.is_finite() && z.is_finite() => Ok(Vec3::new(x, y, z)),
         _ => Err(format!("expected three finite numbers x,y,z, got {s:?}")),
-    }
-}
-
-/// `--bending` values.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum BendingArg {
-    /// The paper's bend springs.
-    Springs,
-    /// Hinges (discrete shells).
-    Hinges,
-    /// Each point's curvature, from a quadric fitted to its neighbours.
-    Curvature,
-}
-
-impl From<BendingArg> for BendingModel {
-    fn from(b: BendingArg) -> Self {
-        match b {
-            BendingArg::Springs => Self::Springs,
-            BendingArg::Hinges => Self::Hinges,
-            BendingArg::Curvature => Self::Curvature,
-        }
     }
 }

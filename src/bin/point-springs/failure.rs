@@ -49,7 +49,7 @@ impl Failure {
 
     /// Prints the message to standard error and gives the exit code.
     pub fn exit(self) -> ExitCode {
-        eprintln!("point-springs: {}", self.message);
+        eprintln!("{}: {}", env!("CARGO_BIN_NAME"), self.message);
         ExitCode::from(self.code)
     }
 }

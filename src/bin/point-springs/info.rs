@@ -5,8 +5,9 @@ use std::fmt;
 use bevy_point_springs::core::cloud::knn::KnnIndex;
 use serde::Serialize;
 
-use crate::args::{CloudInput, JsonFlag};
+use crate::args::CloudInput;
 use crate::failure::Failure;
+use crate::flags::JsonFlag;
 use crate::report::Report;
 
 /// Arguments of `info`.

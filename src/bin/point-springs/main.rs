@@ -13,26 +13,19 @@
 //! point-springs generate (sphere|hat|sheet|letter-b) -o OUT.ply [--points N] [--radius R]
 //!                        [--rim Y] [--size S] [--spacing H] [--uneven U] [--noise SIGMA]
 //!                        [--seed S] [--ascii]
-//! point-springs bench cloth-grid [--size N] [--steps S] [--integrator I] [--repeat R]
-//!                        [--no-reference] [--json]
-//! point-springs bench transfer [--points N] [--sim M] [--sim-source sphere|simplify] [-k K]
-//!                        [--bandwidth H] [--repeat R] [--no-literal] [--threads T] [--json]
-//! point-springs bench plugin [SCENE.ron] [--dense N] [--sim M] [--ticks T] [--block B]
-//!                        [--single-threaded] [--json]
-//! point-springs bench network FILE... [--levels 1,5,20,50] [-k K] [--denoise auto|on|off]
-//!                        [--format F] [--ignore-faces] [--json]
 //! ```
 //!
 //! Exit codes: 0 success, 2 bad input (unreadable or malformed file, bad arguments),
 //! 1 any other failure (e.g. the output cannot be written).
 //!
 //! One module per command, each with its own `Args` and its report; the flags several
-//! commands share are in [`args`], failures and exit codes in [`failure`].
+//! commands share are in [`args`] and [`flags`], failures and exit codes in [`failure`].
+//! The benchmarks and the report are a tool of their own, `point-springs-bench` (the
+//! workspace's `bench/` crate), which shares `failure.rs`, `flags.rs` and `report.rs`.
 
 mod args;
-mod bench;
-mod chart;
 mod failure;
+mod flags;
 mod generate;
 mod info;
 mod normals;
@@ -70,8 +63,6 @@ enum Command {
     /// Choose simulation points (§3 tangent-plane Delaunay simplification) and build their
     /// spring network (§4); normals are estimated first when the file has none.
     Simplify(simplify::Args),
-    /// Time core stages against straightforward or literal implementations.
-    Bench(bench::Args),
     /// Prepare a cloud once (normals, simplification, springs, transfer) and save the result
     /// as a prepared file, which the plugin reads instead of preparing again.
     Prepare(prepare::Args),
@@ -90,7 +81,6 @@ fn main() -> ExitCode {
         Command::Info(args) => info::run(&args),
         Command::Normals(args) => normals::run(&args),
         Command::Simplify(args) => simplify::run(&args),
-        Command::Bench(args) => bench::run(args),
         Command::Prepare(args) => prepare::run(&args),
         Command::Run(args) => run::run(&args),
         Command::Render(args) => render::run(&args),

@@ -8,8 +8,9 @@ use bevy_point_springs::core::PointCloud;
 use bevy_point_springs::core::normals::{DEFAULT_NORMAL_K, NormalSource, ensure_normals};
 use serde::Serialize;
 
-use crate::args::{CloudInput, JsonFlag, PlyFlag};
+use crate::args::{CloudInput, PlyFlag};
 use crate::failure::Failure;
+use crate::flags::JsonFlag;
 use crate::report::Report;
 
 /// Arguments of `normals`.

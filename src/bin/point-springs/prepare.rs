@@ -15,8 +15,9 @@ use bevy_point_springs::core::pipeline::{SurfaceConfig, prepare_surface};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
 
-use crate::args::{CloudInput, JsonFlag};
+use crate::args::CloudInput;
 use crate::failure::Failure;
+use crate::flags::JsonFlag;
 use crate::report::Report;
 
 /// Steps of the progress bar (the whole preparation).

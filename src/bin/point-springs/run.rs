@@ -9,8 +9,9 @@ use bevy_point_springs::core::scene::{Deformed, Scene, SceneRun, Snapshot};
 use glam::Vec3;
 use serde::Serialize;
 
-use crate::args::{JsonFlag, PlyFlag, parse_vec3};
+use crate::args::{PlyFlag, parse_vec3};
 use crate::failure::Failure;
+use crate::flags::JsonFlag;
 use crate::picture::{self, View};
 use crate::report::Report;
 

@@ -17,8 +17,9 @@ use bevy_point_springs::core::simplify::{
 };
 use serde::Serialize;
 
-use crate::args::{CloudInput, DenoiseArg, JsonFlag, PlyFlag};
+use crate::args::{CloudInput, PlyFlag};
 use crate::failure::Failure;
+use crate::flags::{DenoiseArg, JsonFlag};
 use crate::report::Report;
 
 /// Arguments of `simplify`.

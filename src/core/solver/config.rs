@@ -33,7 +33,7 @@ pub enum Integrator {
 pub enum ImplicitSolver {
     /// Backward Euler linearised once per step and solved by preconditioned conjugate
     /// gradient to [`SolverConfig::cg_tolerance`]. Carries everything, contacts included;
-    /// its iterations grow with the network (on `point-springs bench scale`'s poked sphere
+    /// its iterations grow with the network (on `point-springs-bench scale`'s poked sphere
     /// about 0.47 µs a spring at 10³ simulation points and 1.4–2.3 µs at 10⁴). The default.
     #[default]
     ConjugateGradient,
@@ -341,7 +341,7 @@ pub enum BendingModel {
     /// two triangles' rest area): a plate of flexural rigidity `bending_modulus` (N·m) with
     /// the Poisson's ratio [`HINGE_POISSON_RATIO`], on any network spacing. No bend springs:
     /// the stretch springs alone carry the sheet in its plane. On §3's uneven networks it
-    /// depends on how the mesh was cut (coarse spheres 8–12 % stiff in `point-springs bench
+    /// depends on how the mesh was cut (coarse spheres 8–12 % stiff in `point-springs-bench
     /// convergence`); a tick costs about 0.9 times one on [`Self::Curvature`].
     Hinges,
     /// Each point's curvature, from a quadric fitted to its neighbours (see
@@ -350,7 +350,7 @@ pub enum BendingModel {
     /// [`CURVATURE_POISSON_RATIO`], with `bending_damping` as the hinges'. Unlike hinges it
     /// does not depend on how §3 cuts the mesh: a pinned plate on uneven networks sags as
     /// Navier's series says to within 0.5 % at 740 points (hinges: 14–26 % stiff), and
-    /// every problem of `point-springs bench convergence` is within 5 % of its finest level
+    /// every problem of `point-springs-bench convergence` is within 5 % of its finest level
     /// from 5 % of the points. No bend springs. The default (see `docs/ARCHITECTURE.md`,
     /// "Bending on each point's fitted curvature").
     #[default]

@@ -83,6 +83,7 @@ mod springs;
 mod state;
 mod stepper;
 
+pub mod cloth;
 pub mod contact;
 pub mod membrane;
 

@@ -45,8 +45,9 @@
 //! derivatives of the displacement), the deformed normal their cross product: exact for
 //! any affine motion, and no k-NN search or PCA per frame.
 //! [`pca_normals_of`](crate::core::normals::pca_normals_of) recomputes normals the paper's
-//! way, for comparison; `fixtures::paper_transfer` is the paper's whole per-frame method,
-//! kept as the baseline the precomputed transfer is measured against.
+//! way, for comparison; the paper's whole per-frame method, the baseline the precomputed
+//! transfer is measured against, is in the `point-springs-bench` crate
+//! (`bench/src/baselines/paper_transfer.rs`).
 //!
 //! ```
 //! use bevy_point_springs::core::cloud::shapes::fibonacci_sphere;
@@ -86,7 +87,7 @@ use glam::{Vec3, Vec3A};
 use crate::core::cloud::first_invalid_point;
 use crate::core::cloud::knn::KnnIndex;
 
-/// Default number of simulation points each dense point follows (`point-springs bench
+/// Default number of simulation points each dense point follows (`point-springs-bench
 /// transfer` measures k against error: 10 is as accurate as 12 and a sixth cheaper per frame).
 pub const DEFAULT_TRANSFER_K: usize = 10;
 
@@ -105,7 +106,7 @@ pub const NARROW_INDEX_LIMIT: usize = 1 << 16;
 /// Default Gaussian bandwidth, as a multiple of the farthest neighbour's distance: the
 /// farthest then weighs e⁻⁴ ≈ 2 % (the fit changes little when the neighbour set changes
 /// from one dense point to the next), and the error against a known smooth deformation is
-/// 2 to 5 times smaller than at 1.0 (`point-springs bench transfer`).
+/// 2 to 5 times smaller than at 1.0 (`point-springs-bench transfer`).
 pub const DEFAULT_BANDWIDTH: f32 = 0.5;
 
 /// The fit with the normal coordinate needs its Cholesky pivots above this fraction of the

@@ -765,7 +765,7 @@ mod tests {
     #[test]
     fn the_incidence_gives_the_group_step_masses_to_the_bit() {
         // The benchmark cloth (every kind of spring) with a few patches touching.
-        let grid = crate::core::fixtures::cloth::cloth_grid(12).unwrap();
+        let grid = crate::core::solver::cloth::cloth_grid(12).unwrap();
         let n = grid.positions.len();
         let masses: Vec<f32> = (0..n).map(|i| 0.1 + 0.001 * i as f32).collect();
         let incidence = SpringIncidence::new(n, &grid.springs);

@@ -85,7 +85,7 @@ mod tests {
     use glam::Vec3;
 
     use super::*;
-    use crate::core::fixtures::cloth::{CLOTH_MASS, cloth_grid};
+    use crate::core::solver::cloth::{CLOTH_MASS, cloth_grid};
     use crate::core::solver::contact::StepBody;
     use crate::core::solver::{ImplicitSolver, Integrator, Solver, SolverError, SubstepPolicy};
 

@@ -5,7 +5,7 @@
 //! edge. On an uneven mesh the flat triangles' normals are off the smooth surface's by as
 //! much as the jump itself, so Σ 3|ē|²/Ā·θ² depends on how the mesh is cut: §3's uneven
 //! networks and a regular lattice of the same surface bend differently (5–13 % apart in
-//! `point-springs bench convergence`, with no sign of closing as points are added). This
+//! `point-springs-bench convergence`, with no sign of closing as points are added). This
 //! part measures the curvature where it is smooth instead: at each point p, a quadric
 //! h(u) = a·u₁ + b·u₂ + ½(c·u₁² + 2d·u₁u₂ + e·u₂²) fitted by least squares to its
 //! neighbours' heights hⱼ = n·(xⱼ − p) over its tangent plane, the neighbours' tangent

@@ -7,13 +7,14 @@
 use std::hint::black_box;
 
 use bevy_point_springs::core::cloud::shapes::fibonacci_sphere;
-use bevy_point_springs::core::fixtures::cloth::{CLOTH_DT, CLOTH_SIZE, ReferenceCloth, cloth_grid};
 use bevy_point_springs::core::network::{NetworkConfig, build_network};
 use bevy_point_springs::core::simplify::{SimplifyConfig, simplify};
+use bevy_point_springs::core::solver::cloth::{CLOTH_DT, CLOTH_SIZE, cloth_grid};
 use bevy_point_springs::core::solver::{
     Integrator, Solver, SolverConfig, SpringMaterial, SubstepPolicy,
 };
 use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
+use point_springs_bench::baselines::cloth::ReferenceCloth;
 
 /// Steps per measured iteration (one benchmark run is 1000 steps; a tenth of it is timed per
 /// iteration so criterion can take many samples).

@@ -1,4 +1,4 @@
-//! The four fixed scenes of `bench report`: the paper's sphere pressed and held, the hat
+//! The four fixed scenes of `point-springs-bench report`: the paper's sphere pressed and held, the hat
 //! sagging from its rim, a square sheet sagging from its edges, and the kitten scan pulled
 //! by its head. Each is a [`Scene`] built for a simplification level, an integrator and a
 //! step, so that its pulls keep their timing in seconds whatever the step.

@@ -1,4 +1,4 @@
-//! What `bench report` writes: `report.md`, `report.csv`, a chart per scene (SVG and PNG)
+//! What `point-springs-bench report` writes: `report.md`, `report.csv`, a chart per scene (SVG and PNG)
 //! and `summary.json`, each written to a temporary file and renamed into place.
 
 use std::fmt::Write as _;
@@ -10,9 +10,9 @@ use serde::Serialize;
 
 use super::scenes::ReportScene;
 use super::{Budget, RMS_GOAL, Reference, Row, SPEEDUP_GOAL, SUMMARY_FRACTION};
-use crate::bench::table1;
 use crate::chart::{Chart, Series};
 use crate::failure::Failure;
+use crate::table1;
 
 /// The smallest error a chart shows (a run equal to the reference would have none).
 const CHART_FLOOR: f64 = 1e-7;
@@ -305,7 +305,7 @@ impl Report {
         let _ = writeln!(t, "# Speed against error\n");
         let _ = writeln!(
             t,
-            "`point-springs bench report{}{}`: every run simulates {} s; a frame is 1/60 s of steps \
+            "`point-springs-bench report{}{}`: every run simulates {} s; a frame is 1/60 s of steps \
              and one transfer of positions and normals to every dense point; errors are distances \
              of the dense surface at the end from the reference's (every dense point simulated, \
              implicit Euler at dt 1/{:.0}), over the bounding box's diagonal. {} threads. \

@@ -1,4 +1,4 @@
-//! `point-springs bench network`: is the spring network watertight? Each cloud simplified to
+//! `point-springs-bench network`: is the spring network watertight? Each cloud simplified to
 //! several fractions of its points, with the network's closedness, Euler characteristic,
 //! boundary, checks and the time of each stage, as a Markdown table or JSON.
 
@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use bevy_point_springs::core::PointCloud;
-use bevy_point_springs::core::cloud::io::CloudFormat;
+use bevy_point_springs::core::cloud::io::{CloudFormat, read_cloud};
 use bevy_point_springs::core::cloud::knn::KnnIndex;
 use bevy_point_springs::core::network::{DenseSupport, NetworkConfig, build_network_over};
 use bevy_point_springs::core::normals::denoise::noise_level;
@@ -17,11 +17,11 @@ use bevy_point_springs::core::simplify::{
 };
 use serde::Serialize;
 
-use crate::args::{DenoiseArg, load};
 use crate::failure::Failure;
+use crate::flags::DenoiseArg;
 use crate::report::print_json;
 
-/// Arguments of `bench network`.
+/// Arguments of `point-springs-bench network`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
     /// The clouds (.ply .xyz .pwn .off .obj).
@@ -183,7 +183,7 @@ struct Cloud {
     noise_seconds: f64,
 }
 
-/// Runs `bench network`: the table's lines are printed as they are measured (a long run
+/// Runs `point-springs-bench network`: the table's lines are printed as they are measured (a long run
 /// shows its progress); the JSON array of the rows at the end.
 pub fn run(args: &Args) -> Result<(), Failure> {
     if let Some(l) = args.levels.iter().find(|l| !(**l > 0.0 && **l <= 100.0)) {
@@ -215,7 +215,7 @@ pub fn run(args: &Args) -> Result<(), Failure> {
 
 /// Reads `file`, gives it normals and measures its noise level.
 fn read(args: &Args, file: &Path) -> Result<Cloud, Failure> {
-    let mut cloud = load(file, args.format)?;
+    let mut cloud = read_cloud(file, args.format).map_err(Failure::bad_input)?;
     if args.ignore_faces {
         let (positions, normals) = cloud.into_parts();
         cloud = PointCloud::new(positions, normals).map_err(Failure::bad_input)?;

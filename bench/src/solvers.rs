@@ -1,6 +1,6 @@
-//! `point-springs bench solvers`: implicit Euler solved by conjugate gradient against the
+//! `point-springs-bench solvers`: implicit Euler solved by conjugate gradient against the
 //! prefactored local/global solver (`ImplicitSolver::LocalGlobal`) at several iteration
-//! counts, on the scenes of `bench report` at one level and step: the milliseconds per
+//! counts, on the scenes of `point-springs-bench report` at one level and step: the milliseconds per
 //! step of each, and how far each one's dense surface ends from the CG run's (the RMS and
 //! largest distance over the bounding box's diagonal), all measured in one run.
 
@@ -10,13 +10,14 @@ use std::path::PathBuf;
 use bevy_point_springs::core::solver::{ImplicitSolver, Integrator, MAX_LOCAL_GLOBAL_ITERATIONS};
 use serde::Serialize;
 
-use super::report::measure::{error, run_scene};
-use super::report::scenes::ReportScene;
-use crate::args::{BendingArg, JsonFlag};
+use crate::args::BendingArg;
 use crate::failure::Failure;
+use crate::flags::JsonFlag;
 use crate::report::Report;
+use crate::speed_error::measure::{error, run_scene};
+use crate::speed_error::scenes::ReportScene;
 
-/// Arguments of `bench solvers`.
+/// Arguments of `point-springs-bench solvers`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
     /// The scenes, comma-separated (all four when not given).
@@ -67,7 +68,7 @@ struct Row {
     residual_speed: f32,
 }
 
-/// What `bench solvers` reports.
+/// What `point-springs-bench solvers` reports.
 #[derive(Debug, Serialize)]
 struct SolversReport {
     /// "solvers".
@@ -119,7 +120,7 @@ impl fmt::Display for SolversReport {
 
 impl Report for SolversReport {}
 
-/// Runs `bench solvers`.
+/// Runs `point-springs-bench solvers`.
 pub fn run(args: &Args) -> Result<(), Failure> {
     if !(args.fraction > 0.0 && args.fraction <= 1.0) {
         return Err(Failure::bad_input("--fraction must be in (0, 1]"));

@@ -1,4 +1,4 @@
-//! `point-springs bench transfer`: displacement transfer (§5) with precomputed coefficients
+//! `point-springs-bench transfer`: displacement transfer (§5) with precomputed coefficients
 //! against the paper's literal per-frame method, both timed in the same run and compared
 //! with the exact answer for a known smooth deformation.
 
@@ -6,7 +6,6 @@ use std::fmt;
 use std::time::Instant;
 
 use bevy_point_springs::core::cloud::shapes::fibonacci_sphere;
-use bevy_point_springs::core::fixtures::paper_transfer::literal_transfer;
 use bevy_point_springs::core::normals::pca_normals_of;
 use bevy_point_springs::core::simplify::{SimplifyConfig, simplify};
 use bevy_point_springs::core::transfer::{
@@ -14,13 +13,14 @@ use bevy_point_springs::core::transfer::{
 };
 use clap::ValueEnum;
 use glam::{Mat3, Vec3};
+use point_springs_bench::baselines::paper_transfer::literal_transfer;
 use serde::Serialize;
 
-use crate::args::JsonFlag;
 use crate::failure::Failure;
+use crate::flags::JsonFlag;
 use crate::report::Report;
 
-/// Arguments of `bench transfer`.
+/// Arguments of `point-springs-bench transfer`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
     /// Dense points (a Fibonacci sphere of radius 1).
@@ -91,7 +91,7 @@ struct Errors {
     normal_mean_deg: f32,
 }
 
-/// What `bench transfer` reports.
+/// What `point-springs-bench transfer` reports.
 #[derive(Debug, Serialize)]
 struct TransferBenchReport {
     /// "transfer".
@@ -257,7 +257,7 @@ fn calls_for(f: &mut dyn FnMut()) -> usize {
     ((SAMPLE_MS / once.max(1e-6)).ceil() as usize).clamp(1, MAX_SAMPLE_CALLS)
 }
 
-/// Runs `bench transfer` (on its own thread pool).
+/// Runs `point-springs-bench transfer` (on its own thread pool).
 pub fn run(args: &Args) -> Result<(), Failure> {
     let mut pool = rayon::ThreadPoolBuilder::new();
     if let Some(threads) = args.threads {

@@ -1,4 +1,4 @@
-//! One configuration of `bench report` run and measured: the scene prepared at a level,
+//! One configuration of `point-springs-bench report` run and measured: the scene prepared at a level,
 //! stepped frame by frame (one frame: as many steps as fill 1/60 s, then the transfer of
 //! positions and normals to every dense point), timed, and compared at the end with the
 //! reference's dense surface.

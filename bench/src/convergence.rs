@@ -1,4 +1,4 @@
-//! `point-springs bench convergence`: does a coarse network model the same surface as a fine
+//! `point-springs-bench convergence`: does a coarse network model the same surface as a fine
 //! one? Four static problems, each prepared at several simplification levels (down from
 //! every dense point as a simulation point), with the material per spring (the paper's), as a
 //! sheet's moduli (see `MaterialUnits`), as a sheet bending on hinges (see
@@ -30,9 +30,9 @@ use bevy_point_springs::core::solver::{
 use glam::Vec3;
 use serde::Serialize;
 
-use crate::args::JsonFlag;
 use crate::chart::{Chart, Series};
 use crate::failure::Failure;
+use crate::flags::JsonFlag;
 use crate::report::Report;
 
 /// Step of the runs to equilibrium, s (implicit Euler: stable, and its numerical damping
@@ -147,7 +147,7 @@ const POKE_RADIUS: f32 = 0.3;
 /// Most steps per run.
 const MAX_STEPS: usize = 100_000;
 
-/// Arguments of `bench convergence`.
+/// Arguments of `point-springs-bench convergence`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
     /// Fractions of the dense points kept as simulation points; the largest is the
@@ -286,7 +286,7 @@ impl fmt::Display for ConvergenceReport {
 
 impl Report for ConvergenceReport {}
 
-/// Runs `bench convergence`.
+/// Runs `point-springs-bench convergence`.
 pub fn run(args: &Args) -> Result<(), Failure> {
     if !(1..=MAX_STEPS).contains(&args.steps) {
         return Err(Failure::bad_input(format!(

@@ -1,4 +1,4 @@
-//! `point-springs bench plugin`: the Bevy plugin run headless (one fixed tick per update)
+//! `point-springs-bench plugin`: the Bevy plugin run headless (one fixed tick per update)
 //! against the same work done by the core alone, measured in the same run.
 //!
 //! The ECS tick is timed by marker systems ordered between the plugin's chained sets, so
@@ -29,12 +29,13 @@ use bevy_point_springs::prelude::{
 };
 use serde::Serialize;
 
-use super::poked_sphere;
-use crate::args::{BendingArg, JsonFlag};
+use crate::args::BendingArg;
 use crate::failure::Failure;
+use crate::flags::JsonFlag;
+use crate::poke::poked_sphere;
 use crate::report::Report;
 
-/// Arguments of `bench plugin`.
+/// Arguments of `point-springs-bench plugin`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
     /// A scene file (default: a generated sphere with a sustained poke).
@@ -68,7 +69,7 @@ const MAX_DENSE: usize = 5_000_000;
 /// Upper bound on waiting for the ECS preparation (a hang guard).
 const PREPARE_TIMEOUT: Duration = Duration::from_secs(600);
 
-/// What `bench plugin` reports (times in ms, means over the timed ticks).
+/// What `point-springs-bench plugin` reports (times in ms, means over the timed ticks).
 #[derive(Debug, Serialize)]
 struct PluginReport {
     /// The scene file, or the generated sphere.
@@ -364,7 +365,7 @@ fn time_blocks(
     Ok(timing)
 }
 
-/// Runs `bench plugin`.
+/// Runs `point-springs-bench plugin`.
 pub fn run(args: &Args) -> Result<(), Failure> {
     if args.ticks == 0 || args.block == 0 {
         return Err(Failure::bad_input("--ticks and --block must be at least 1"));

@@ -1,20 +1,19 @@
-//! `point-springs bench cloth-grid`: the standard CPU cloth benchmark, the solver timed
+//! `point-springs-bench cloth-grid`: the standard CPU cloth benchmark, the solver timed
 //! against the straightforward loop over the springs in the same run.
 
 use std::fmt;
 use std::time::Instant;
 
-use bevy_point_springs::core::fixtures::cloth::{
-    CLOTH_DT, CLOTH_SIZE, CLOTH_STEPS, ReferenceCloth, cloth_grid, max_sag,
-};
+use bevy_point_springs::core::solver::cloth::{CLOTH_DT, CLOTH_SIZE, CLOTH_STEPS, cloth_grid};
 use bevy_point_springs::core::solver::{Integrator, Solver, SubstepPolicy};
+use point_springs_bench::baselines::cloth::{ReferenceCloth, max_sag};
 use serde::Serialize;
 
-use crate::args::JsonFlag;
 use crate::failure::Failure;
+use crate::flags::JsonFlag;
 use crate::report::Report;
 
-/// Arguments of `bench cloth-grid`.
+/// Arguments of `point-springs-bench cloth-grid`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
     /// Particles per side.
@@ -38,7 +37,7 @@ pub struct Args {
     json: JsonFlag,
 }
 
-/// What `bench cloth-grid` reports.
+/// What `point-springs-bench cloth-grid` reports.
 #[derive(Debug, Serialize)]
 struct ClothBenchReport {
     /// "cloth-grid".
@@ -153,7 +152,7 @@ impl<S, F: FnMut() -> S> Timed<S, F> {
     }
 }
 
-/// Runs `bench cloth-grid`.
+/// Runs `point-springs-bench cloth-grid`.
 pub fn run(args: &Args) -> Result<(), Failure> {
     let grid = cloth_grid(args.size).map_err(Failure::bad_input)?;
     let solver = grid

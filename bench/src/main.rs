@@ -1,29 +1,63 @@
-//! `point-springs bench`: timings of the core stages against straightforward or literal
+//! `point-springs-bench`: timings of the library's stages against straightforward or literal
 //! implementations, both measured in the same run (ratios, not absolute times, are what
-//! carry over between machines).
+//! carry over between machines), and the speed-against-error report.
+//!
+//! ```text
+//! point-springs-bench cloth-grid [--size N] [--steps S] [--integrator I] [--repeat R]
+//!                        [--no-reference] [--json]
+//! point-springs-bench transfer [--points N] [--sim M] [--sim-source sphere|simplify] [-k K]
+//!                        [--bandwidth H] [--repeat R] [--no-literal] [--threads T] [--json]
+//! point-springs-bench plugin [SCENE.ron] [--dense N] [--sim M] [--ticks T] [--block B]
+//!                        [--single-threaded] [--json]
+//! point-springs-bench network FILE... [--levels 1,5,20,50] [-k K] [--denoise auto|on|off]
+//!                        [--format F] [--ignore-faces] [--json]
+//! point-springs-bench report [--quick] [--scenes S,...] [-o DIR] [--assets DIR]
+//! point-springs-bench (crowd|table1|convergence|scale|solvers) ... (see --help)
+//! ```
+//!
+//! Run it from the repository root (`cargo run --release -p point-springs-bench -- …`): the
+//! scenes are read from `assets/` there unless `--assets` says otherwise. It is the
+//! workspace's `bench/` crate, apart from the `point-springs` tool so the tool's `--help`
+//! and build carry none of this; it shares the tool's `failure.rs`, `flags.rs` and
+//! `report.rs` (by path) so both print and fail the same way. The baselines it times the
+//! library against are this crate's library ([`point_springs_bench::baselines`]).
 
+mod args;
+mod chart;
 mod cloth;
 mod convergence;
-#[cfg(feature = "plugin")]
 mod crowd;
+#[path = "../../src/bin/point-springs/failure.rs"]
+#[allow(
+    dead_code,
+    reason = "shared with the tool; no benchmark fails as unstable"
+)]
+mod failure;
+#[path = "../../src/bin/point-springs/flags.rs"]
+mod flags;
 mod network;
-#[cfg(feature = "plugin")]
 mod plugin;
 mod poke;
+#[path = "../../src/bin/point-springs/report.rs"]
 mod report;
 mod scale;
 mod solvers;
+mod speed_error;
 mod table1;
 mod transfer;
 
-use clap::Subcommand;
+use std::process::ExitCode;
 
-use crate::failure::Failure;
-pub use poke::{POKED_SPHERE_DT, poked_sphere};
+use clap::{Parser, Subcommand};
 
-/// Arguments of `bench`.
-#[derive(Debug, clap::Args)]
-pub struct Args {
+/// The command line.
+#[derive(Parser)]
+#[command(
+    name = "point-springs-bench",
+    version,
+    about = "Benchmarks of bevy_point_springs, and its speed-against-error report"
+)]
+struct Cli {
     /// The benchmark.
     #[command(subcommand)]
     case: Case,
@@ -45,12 +79,10 @@ enum Case {
     /// into forces, stepping and transfer, the surfel upload's packing, and the same work
     /// done by the core alone in the same run. Without SCENE: a generated sphere (of
     /// --dense points, --sim simulation points) in a cup with a sustained poke.
-    #[cfg(feature = "plugin")]
     Plugin(plugin::Args),
     /// A crowd of small surfaces in the plugin at default settings: --surfaces gas-filled
     /// spheres (of --dense points simplified to --sim), falling under gravity and poked;
     /// milliseconds per tick for all of them, with sub-steps, CG iterations and guard trips.
-    #[cfg(feature = "plugin")]
     Crowd(crowd::Args),
     /// Whether the spring network is watertight: each cloud simplified to several fractions
     /// of its points, with the network's closedness, Euler characteristic, boundary loops,
@@ -73,27 +105,28 @@ enum Case {
     /// timed per step and per 60 Hz frame, their dense surfaces compared with a
     /// full-resolution reference; writes report.md, report.csv, a chart per scene with its
     /// Pareto front, and summary.json (with the paper's Table 1).
-    Report(report::Args),
+    Report(speed_error::Args),
     /// Implicit Euler's two solvers side by side: conjugate gradient and the prefactored
     /// local/global iterations at several counts, on the scenes of `report` at one level;
     /// ms per step and each dense surface's distance from the CG run's at the end.
     Solvers(solvers::Args),
 }
 
-/// Runs `bench`.
-pub fn run(args: Args) -> Result<(), Failure> {
-    match args.case {
+fn main() -> ExitCode {
+    let result = match Cli::parse().case {
         Case::ClothGrid(args) => cloth::run(&args),
         Case::Transfer(args) => transfer::run(&args),
-        #[cfg(feature = "plugin")]
         Case::Plugin(args) => plugin::run(&args),
-        #[cfg(feature = "plugin")]
         Case::Crowd(args) => crowd::run(&args),
         Case::Network(args) => network::run(&args),
         Case::Table1(args) => table1::run(&args),
         Case::Scale(args) => scale::run(&args),
         Case::Convergence(args) => convergence::run(&args),
-        Case::Report(args) => report::run(&args),
+        Case::Report(args) => speed_error::run(&args),
         Case::Solvers(args) => solvers::run(&args),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(failure) => failure.exit(),
     }
 }

@@ -1,11 +1,11 @@
-//! `point-springs bench crowd`: many small surfaces at the plugin's default settings, the
+//! `point-springs-bench crowd`: many small surfaces at the plugin's default settings, the
 //! case a game meets when it scatters deformable props (issue 32): 40 gas-filled spheres of
 //! 1500 dense and 120 simulation points took 27 ms a tick when the default integrator was
 //! symplectic Euler (56 sub-steps a step).
 //!
 //! Each sphere falls under gravity and is poked by an anchor for the first half of the run,
 //! so every surface steps every tick (none falls asleep). Ticks run in the plugin's fixed
-//! schedule headless, timed between marker systems (see `bench plugin`).
+//! schedule headless, timed between marker systems (see `point-springs-bench plugin`).
 
 use std::fmt;
 use std::time::{Duration, Instant};
@@ -19,12 +19,12 @@ use bevy_point_springs::prelude::{
 };
 use serde::Serialize;
 
-use super::plugin::{Clock, ecs_app};
-use crate::args::JsonFlag;
 use crate::failure::Failure;
+use crate::flags::JsonFlag;
+use crate::plugin::{Clock, ecs_app};
 use crate::report::Report;
 
-/// Arguments of `bench crowd`.
+/// Arguments of `point-springs-bench crowd`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
     /// Surfaces.
@@ -64,7 +64,7 @@ const MAX_SURFACES: usize = 10_000;
 /// Largest sphere the command takes.
 const MAX_DENSE: usize = 1_000_000;
 
-/// What `bench crowd` reports (times in ms, means over the timed ticks).
+/// What `point-springs-bench crowd` reports (times in ms, means over the timed ticks).
 #[derive(Debug, Serialize)]
 struct CrowdReport {
     /// Surfaces.
@@ -126,7 +126,7 @@ impl fmt::Display for CrowdReport {
 
 impl Report for CrowdReport {}
 
-/// Runs `bench crowd`.
+/// Runs `point-springs-bench crowd`.
 pub fn run(args: &Args) -> Result<(), Failure> {
     if args.surfaces == 0 || args.surfaces > MAX_SURFACES {
         return Err(Failure::bad_input(format!(

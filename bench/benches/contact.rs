@@ -45,7 +45,7 @@ use bevy_point_springs::plugin::{
 use bevy_point_springs::prelude::*;
 use bevy_rapier3d::prelude::*;
 
-#[path = "../tests/support/rapier_app.rs"]
+#[path = "../../tests/support/rapier_app.rs"]
 mod rapier_app;
 use rapier_app::{create_app, pin};
 

@@ -1,4 +1,4 @@
-//! `point-springs bench table1`: the paper's Table 1 measured here. The 3203-point sphere
+//! `point-springs-bench table1`: the paper's Table 1 measured here. The 3203-point sphere
 //! of Fig. 5 (the `sphere_poke` scene) simplified to the table's 85, 273 and 338
 //! simulation points, poked as in the scene; the time per step includes the transfer to
 //! every dense point, positions and normals, as the paper's does. The paper's figures (a
@@ -16,23 +16,23 @@ use bevy_point_springs::core::scene::Scene;
 use bevy_point_springs::core::solver::{BendingModel, DampingModel, Integrator};
 use serde::Serialize;
 
-use crate::args::JsonFlag;
 use crate::failure::Failure;
+use crate::flags::JsonFlag;
 use crate::report::Report;
 
 /// The paper's Table 1: simulation points and seconds per step on its 2 GHz Pentium IV.
 pub const PAPER_TABLE1: [(usize, f64); 3] = [(85, 0.13), (273, 0.25), (338, 0.42)];
 
-/// The scene `bench table1` runs unless told otherwise (relative to the repository root).
+/// The scene `point-springs-bench table1` runs unless told otherwise (relative to the repository root).
 const DEFAULT_SCENE: &str = "assets/scenes/sphere_poke.ron";
 
-/// Most steps `bench table1` takes per row.
+/// Most steps `point-springs-bench table1` takes per row.
 const MAX_STEPS: usize = 100_000;
 
-/// Most runs `bench table1` takes per row.
+/// Most runs `point-springs-bench table1` takes per row.
 const MAX_REPEATS: usize = 100;
 
-/// Arguments of `bench table1`.
+/// Arguments of `point-springs-bench table1`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
     /// The scene (by default the paper's sphere poke, `assets/scenes/sphere_poke.ron`).
@@ -78,7 +78,7 @@ pub(super) struct Row {
     pub(super) speedup: f64,
 }
 
-/// What `bench table1` reports.
+/// What `point-springs-bench table1` reports.
 #[derive(Debug, Serialize)]
 struct Table1Report {
     /// "table1".
@@ -129,7 +129,7 @@ impl fmt::Display for Table1Report {
 
 impl Report for Table1Report {}
 
-/// Runs `bench table1`.
+/// Runs `point-springs-bench table1`.
 pub fn run(args: &Args) -> Result<(), Failure> {
     if !(1..=MAX_STEPS).contains(&args.steps) {
         return Err(Failure::bad_input(format!(

@@ -1,4 +1,4 @@
-//! `point-springs bench report`: speed against error. Four fixed scenes (see
+//! `point-springs-bench report`: speed against error. Four fixed scenes (see
 //! [`scenes::ReportScene`]), each at several simplification levels (every dense point a
 //! simulation point, down to about 2 %), with each integrator and a few steps, run for the
 //! same simulated time; per configuration the milliseconds per step and per 60 Hz frame and
@@ -87,7 +87,7 @@ impl Plan {
     }
 }
 
-/// Arguments of `bench report`.
+/// Arguments of `point-springs-bench report`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
     /// A short report (3 levels, one step, 3 s per run; under two minutes in a release
@@ -95,7 +95,7 @@ pub struct Args {
     #[arg(long)]
     quick: bool,
     /// The folder the report's files go to (made when missing).
-    #[arg(long, default_value = "report")]
+    #[arg(short = 'o', long, default_value = "report")]
     out: PathBuf,
     /// The folder holding `kitten.off` and `scenes/sphere_poke.ron`.
     #[arg(long, default_value = "assets")]
@@ -172,7 +172,7 @@ pub struct Budget {
     pub levels: Vec<(f32, f64, Option<f64>)>,
 }
 
-/// Runs `bench report`.
+/// Runs `point-springs-bench report`.
 pub fn run(args: &Args) -> Result<(), Failure> {
     let plan = Plan::new(args.quick, args.bending.into());
     let bending = plan.bending;
@@ -267,7 +267,7 @@ pub fn run(args: &Args) -> Result<(), Failure> {
         });
     }
     bar.set_message("Table 1");
-    let table1 = super::table1::measure_sizes(
+    let table1 = crate::table1::measure_sizes(
         &table1_scene,
         &table1_base,
         plan.table1_steps,

@@ -10,11 +10,11 @@ use std::hint::black_box;
 use std::time::Duration;
 
 use bevy_point_springs::core::cloud::shapes::fibonacci_sphere;
-use bevy_point_springs::core::fixtures::paper_transfer::literal_transfer;
 use bevy_point_springs::core::simplify::{SimplifyConfig, simplify};
 use bevy_point_springs::core::transfer::{Transfer, TransferConfig};
 use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
 use glam::Vec3;
+use point_springs_bench::baselines::paper_transfer::literal_transfer;
 
 /// Neighbours for the literal method's PCA normals.
 const PCA_K: usize = 10;

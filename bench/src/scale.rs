@@ -1,4 +1,4 @@
-//! `point-springs bench scale`: how preparation, a step, the transfer and memory grow with
+//! `point-springs-bench scale`: how preparation, a step, the transfer and memory grow with
 //! the dense and the simulation point counts. Each configuration is the generated sphere of
 //! the paper's Fig. 5 ([`poked_sphere`]) at that size, prepared from scratch, then pressed
 //! for a few steps (implicit Euler at 60 Hz, gas inside), each step followed by the transfer
@@ -17,18 +17,18 @@ use bevy_point_springs::core::scene::Timeline;
 use bevy_point_springs::core::solver::{DEFAULT_LOCAL_GLOBAL_ITERATIONS, ImplicitSolver};
 use serde::Serialize;
 
-use super::{POKED_SPHERE_DT, poked_sphere};
 use crate::chart::{Chart, Series};
 use crate::failure::Failure;
+use crate::poke::{POKED_SPHERE_DT, poked_sphere};
 use crate::report::print_json;
 
-/// Most dense points `bench scale` takes.
+/// Most dense points `point-springs-bench scale` takes.
 const MAX_DENSE: usize = 20_000_000;
 
 /// Most steps timed per configuration.
 const MAX_STEPS: usize = 10_000;
 
-/// Arguments of `bench scale`.
+/// Arguments of `point-springs-bench scale`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
     /// Dense point counts.
@@ -117,7 +117,7 @@ impl fmt::Display for Row {
     }
 }
 
-/// Runs `bench scale`.
+/// Runs `point-springs-bench scale`.
 pub fn run(args: &Args) -> Result<(), Failure> {
     if args.dense.iter().any(|&n| !(4..=MAX_DENSE).contains(&n)) {
         return Err(Failure::bad_input(format!(
