@@ -160,7 +160,7 @@ fn setup(
 /// tick, before the tick's forces (rapier moves it there; the flag's edge lands there).
 fn drive_pole(
     time: Res<Time>,
-    flags: Query<(&SurfaceStatus, &SurfaceSettings), With<Flag>>,
+    flags: Query<(&SurfaceStatus, &SurfaceRunSettings), With<Flag>>,
     mut poles: Query<&mut Transform, With<Pole>>,
     mut t: Local<f32>,
 ) {

@@ -32,6 +32,7 @@ use bevy_point_springs::core::cloud::shapes::fibonacci_sphere;
 use bevy_point_springs::core::cloud::surfels::{
     SURFEL_BYTES, SurfelShape, compare_records, pack_surfels,
 };
+use bevy_point_springs::core::pipeline::DenseCloud;
 use bevy_point_springs::core::pipeline::SurfaceConfig;
 use bevy_point_springs::core::simplify::SimplifyConfig;
 use bevy_point_springs::plugin::panel::PointSpringsPanelPlugin;
@@ -174,7 +175,7 @@ fn run(o: &Options, device: TransferDevice, file: &std::path::Path) -> (Run, App
                 device,
                 ..default()
             },
-            SurfaceSettings {
+            SurfaceRunSettings {
                 transfer: TransferTiming::PerFrame,
                 paused: true,
                 ..default()
@@ -240,7 +241,7 @@ fn check(app: &mut App, surface: Entity) {
     let world = app.world();
     let first = world.get::<MeshTag>(surface).unwrap().0 as usize;
     let points = world.get::<SimulationPoints>(surface).unwrap().0.clone();
-    let mut dense = world.get::<DenseSurface>(surface).unwrap().0.clone();
+    let mut dense = DenseCloud::clone(world.get::<DenseSurface>(surface).unwrap());
     let scale = world.get::<SurfelRender>(surface).unwrap().radius_scale;
     let rest = dense.transfer();
     let shape = SurfelShape::at_rest(rest.rest_positions(), rest.rest_normals(), scale);

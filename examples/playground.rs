@@ -211,7 +211,7 @@ fn setup(
 fn drop_balls(
     mut commands: Commands,
     look: Res<BallLook>,
-    surfaces: Query<(&SurfaceStatus, &SurfaceSettings)>,
+    surfaces: Query<(&SurfaceStatus, &SurfaceRunSettings)>,
     balls: Query<(Entity, &Ball)>,
     mut tick: Local<u32>,
 ) {

@@ -66,7 +66,7 @@ pub mod prelude {
     // A surface, its state and its settings at run time.
     #[cfg(feature = "plugin")]
     pub use crate::plugin::{
-        DeformableSurface, PrepareAgain, SurfaceMaterial, SurfaceSettings, SurfaceStatus,
+        DeformableSurface, PrepareAgain, SurfaceMaterial, SurfaceRunSettings, SurfaceStatus,
     };
     // A surface's points, forces and drawn surface, in world space too.
     #[cfg(feature = "plugin")]

@@ -371,11 +371,16 @@ fn attachments_are_picked_again_after_preparing_again_and_let_go_of_a_despawned_
     app.world_mut()
         .entity_mut(sheet)
         .insert(PrepareAgain(config));
-    let before = app.world().get::<SurfaceNetwork>(sheet).unwrap().0.clone();
+    let before = app
+        .world()
+        .get::<SurfaceNetwork>(sheet)
+        .unwrap()
+        .shared()
+        .clone();
     let deadline = Instant::now() + SETTLE_TIMEOUT;
     while std::sync::Arc::ptr_eq(
         &before,
-        &app.world().get::<SurfaceNetwork>(sheet).unwrap().0,
+        app.world().get::<SurfaceNetwork>(sheet).unwrap().shared(),
     ) {
         assert!(Instant::now() < deadline, "not prepared again");
         app.update();

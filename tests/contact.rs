@@ -740,9 +740,9 @@ fn drop_sheet_on_the_floor(self_contact: bool) -> Dropped {
     ));
     settle(&mut app, sheet);
     let mut stepper = app.world_mut().get_mut::<SurfaceStepper>(sheet).unwrap();
-    let mut config = *stepper.0.config();
+    let mut config = *stepper.config();
     config.gravity = turn.inverse() * Vec3::new(0.0, -9.81, 0.0);
-    stepper.0.set_config(config).unwrap();
+    stepper.set_config(config).unwrap();
     let (mut worst, mut touching, mut crossed_ticks) = (0, 0, 0);
     let mut last = 0;
     for _ in 0..240 {
@@ -786,7 +786,7 @@ fn self_crossings(app: &App, e: Entity) -> usize {
         .unwrap()
         .iter_positions()
         .collect();
-    let network = &app.world().get::<SurfaceNetwork>(e).unwrap().0;
+    let network = app.world().get::<SurfaceNetwork>(e).unwrap().shared();
     surface_intersections(&points, &network.triangles)
 }
 

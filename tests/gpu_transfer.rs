@@ -11,6 +11,7 @@ use std::time::{Duration, Instant};
 
 use bevy::app::ScheduleRunnerPlugin;
 use bevy::camera::RenderTarget;
+use bevy::ecs::system::RunSystemOnce;
 use bevy::mesh::MeshTag;
 use bevy::prelude::*;
 use bevy::render::RenderPlugin;
@@ -22,15 +23,16 @@ use bevy_point_springs::core::cloud::io::read_cloud;
 use bevy_point_springs::core::cloud::surfels::{
     SURFEL_BYTES, SurfelShape, compare_records, pack_surfels,
 };
+use bevy_point_springs::core::pipeline::DenseCloud;
 use bevy_point_springs::core::pipeline::SurfaceConfig;
 use bevy_point_springs::core::simplify::SimplifyConfig;
-use bevy_point_springs::plugin::components::SurfaceSettings;
+use bevy_point_springs::plugin::TransferTiming;
+use bevy_point_springs::plugin::components::SurfaceRunSettings;
 use bevy_point_springs::plugin::render::SurfelRenderPlugin;
 use bevy_point_springs::plugin::render::{
     SurfelMaterial, SurfelRender, SurfelSlot, TransferDevice,
 };
 use bevy_point_springs::plugin::simulate::follow;
-use bevy_point_springs::plugin::{SurfaceMasses, TransferTiming};
 use bevy_point_springs::prelude::*;
 
 /// A hang guard, not a speed check.
@@ -90,7 +92,7 @@ fn spawn(app: &mut App, cloud: bevy_point_springs::core::PointCloud, target: usi
                 device: TransferDevice::Gpu,
                 ..default()
             },
-            SurfaceSettings {
+            SurfaceRunSettings {
                 transfer: TransferTiming::PerFrame,
                 paused: true,
                 ..default()
@@ -156,7 +158,7 @@ fn check_against_cpu(app: &App, surfaces: &[Entity], gpu: &[u8]) {
         let world = app.world();
         let first = world.get::<MeshTag>(e).unwrap().0 as usize;
         let points = world.get::<SimulationPoints>(e).unwrap().0.clone();
-        let mut dense = world.get::<DenseSurface>(e).unwrap().0.clone();
+        let mut dense = DenseCloud::clone(world.get::<DenseSurface>(e).unwrap());
         let render = world.get::<SurfelRender>(e).unwrap();
         let rest = dense.transfer();
         let shape = SurfelShape::at_rest(
@@ -234,10 +236,11 @@ fn the_gpu_transfer_draws_what_the_cpu_transfer_packs() {
     // Pins change the transfer's rows (the dense points by pinned points follow the pins
     // alone): the GPU gets the new coefficients, and draws what the CPU does.
     for &e in &surfaces {
-        let mut masses = app.world_mut().get_mut::<SurfaceMasses>(e).unwrap();
-        for i in (0..masses.len()).step_by(3) {
-            masses.set_pinned(i, true).unwrap();
-        }
+        app.world_mut()
+            .run_system_once(move |mut pins: SurfacePins| {
+                pins.pin_where(e, |i| i % 3 == 0).unwrap();
+            })
+            .unwrap();
     }
     move_points(&mut app, &surfaces, |p| {
         p + Vec3::new(0.0, 0.1 * p.x * p.x, 0.0)

@@ -2,15 +2,14 @@
 //! `MinimalPlugins` + `TransformPlugin` + `PointSpringsPlugin`, one `update()` one tick.
 #![cfg(feature = "plugin")]
 
+use bevy::ecs::system::RunSystemOnce;
 use bevy::prelude::*;
 use bevy_point_springs::core::cloud::shapes;
 use bevy_point_springs::core::network::surface_intersections;
 use bevy_point_springs::core::pipeline::SurfaceConfig;
 use bevy_point_springs::core::simplify::SimplifyConfig;
-use bevy_point_springs::core::solver::{BendingModel, MaterialUnits, SpringMaterial, hold_still};
-use bevy_point_springs::plugin::{
-    SurfaceMasses, SurfaceMeetingReport, SurfaceNetwork, SurfaceStepper,
-};
+use bevy_point_springs::core::solver::{BendingModel, MaterialUnits, SpringMaterial};
+use bevy_point_springs::plugin::{SurfaceMeetingReport, SurfaceNetwork, SurfaceStepper};
 use bevy_point_springs::prelude::*;
 
 #[allow(dead_code)] // the helpers of other test files
@@ -184,13 +183,17 @@ fn a_hat_dropped_on_a_head_rests_on_it_outside() {
         );
     }
     {
-        let rest = app.world().get::<SurfaceNetwork>(head).unwrap().0.clone();
-        let world = app.world_mut();
-        let (mut masses, mut points) = world
-            .query::<(&mut SurfaceMasses, &mut SimulationPoints)>()
-            .get_mut(world, head)
+        let rest = app
+            .world()
+            .get::<SurfaceNetwork>(head)
+            .unwrap()
+            .shared()
+            .clone();
+        app.world_mut()
+            .run_system_once(move |mut pins: SurfacePins| {
+                pins.pin_where(head, |i| rest.positions[i].y < 0.0).unwrap();
+            })
             .unwrap();
-        hold_still(&mut masses, &mut points, |i| rest.positions[i].y < 0.0).unwrap();
     }
     let per_second = (1.0 / TICK.as_secs_f32()).round() as usize;
     let mut worst_inside = 0.0_f32;
@@ -242,7 +245,7 @@ fn crossings(app: &App, surfaces: &[Entity]) -> usize {
     for &e in surfaces {
         let offset = points.len() as u32;
         points.extend(world_points(app, e));
-        let network = &app.world().get::<SurfaceNetwork>(e).unwrap().0;
+        let network = app.world().get::<SurfaceNetwork>(e).unwrap().shared();
         triangles.extend(network.triangles.iter().map(|t| t.map(|c| c + offset)));
     }
     surface_intersections(&points, &triangles)
@@ -252,20 +255,24 @@ fn crossings(app: &App, surfaces: &[Entity]) -> usize {
 /// prepared with (so that it does not fall while another surface prepares).
 fn let_fall(app: &mut App, e: Entity, gravity: Vec3) {
     let mut stepper = app.world_mut().get_mut::<SurfaceStepper>(e).unwrap();
-    let mut config = *stepper.0.config();
+    let mut config = *stepper.config();
     config.gravity = gravity;
-    stepper.0.set_config(config).unwrap();
+    stepper.set_config(config).unwrap();
 }
 
 /// Holds still the simulation points of `e` whose rest position `held` accepts.
-fn hold(app: &mut App, e: Entity, held: impl Fn(Vec3) -> bool) -> usize {
-    let rest = app.world().get::<SurfaceNetwork>(e).unwrap().0.clone();
-    let world = app.world_mut();
-    let (mut masses, mut points) = world
-        .query::<(&mut SurfaceMasses, &mut SimulationPoints)>()
-        .get_mut(world, e)
-        .unwrap();
-    hold_still(&mut masses, &mut points, |i| held(rest.positions[i])).unwrap()
+fn hold(app: &mut App, e: Entity, held: impl Fn(Vec3) -> bool + Send + Sync + 'static) -> usize {
+    let rest = app
+        .world()
+        .get::<SurfaceNetwork>(e)
+        .unwrap()
+        .shared()
+        .clone();
+    app.world_mut()
+        .run_system_once(move |mut pins: SurfacePins| {
+            pins.pin_where(e, |i| held(rest.positions[i])).unwrap()
+        })
+        .unwrap()
 }
 
 /// A square of cloth `side` m wide with `sim` simulation points (its rest in the XY plane;
@@ -369,7 +376,12 @@ fn fold_sheet(self_contact: bool) -> (usize, usize, f32) {
         );
     }
     // The free half's lowest point over the held half (a free point turned past x = −0.1).
-    let rest = app.world().get::<SurfaceNetwork>(s).unwrap().0.clone();
+    let rest = app
+        .world()
+        .get::<SurfaceNetwork>(s)
+        .unwrap()
+        .shared()
+        .clone();
     let lowest = world_points(&app, s)
         .iter()
         .zip(&rest.positions)

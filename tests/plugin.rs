@@ -4,6 +4,7 @@
 use std::time::Duration;
 
 use bevy::ecs::schedule::SingleThreadedExecutor;
+use bevy::ecs::system::RunSystemOnce;
 use bevy::prelude::*;
 use bevy::time::TimeUpdateStrategy;
 use bevy_point_springs::core::PointCloud;
@@ -18,9 +19,8 @@ use bevy_point_springs::plugin::PreparedFileOutcome;
 #[cfg(feature = "render")]
 use bevy_point_springs::plugin::pick::{PointerGrabs, SurfacePickingPlugin};
 use bevy_point_springs::plugin::{
-    Grabs, PreparationProgress, PreviousTick, SceneTimeline, SurfaceAnchors, SurfaceMasses,
-    SurfaceNetwork, SurfaceSleep, SurfaceSprings, SurfaceStepper, TransferTiming,
-    WorldSurfaceError,
+    Grabs, PreparationProgress, PreviousTick, SceneTimeline, SurfaceAnchors, SurfaceNetwork,
+    SurfaceSleep, SurfaceSprings, SurfaceStepper, TransferTiming, WorldSurfaceError,
 };
 use bevy_point_springs::prelude::*;
 
@@ -97,7 +97,7 @@ fn run_scene_in_ecs_through(
                 prepared_file: prepared_file.map(|p| p.to_owned()),
                 ..DeformableSurface::scene(handle)
             },
-            SurfaceSettings {
+            SurfaceRunSettings {
                 transfer: TransferTiming::EveryTick,
                 ..default()
             },
@@ -124,7 +124,7 @@ fn run_scene_in_ecs_through(
     }
     assert_eq!(steps(&app), scene.steps as u64, "one step per tick");
     assert!(app.world().get::<SceneTimeline>(entity).unwrap().finished());
-    let dense = app.world().get::<DenseSurface>(entity).unwrap().0.clone();
+    let dense = DenseCloud::clone(app.world().get::<DenseSurface>(entity).unwrap());
     (dense, scene, app, entity)
 }
 
@@ -232,7 +232,7 @@ fn a_game_system_in_the_force_set_moves_the_surface() {
     // (Against the motion since rest: the blown surface may be ready, and blown, a few
     // updates before the other one.)
     let shift = dense.positions()[0] - dense.transfer().rest_positions()[0];
-    let network = &app.world().get::<SurfaceNetwork>(blown).unwrap().0;
+    let network = app.world().get::<SurfaceNetwork>(blown).unwrap().shared();
     let rest = network.positions.iter().sum::<Vec3>() / network.len() as f32;
     let since_rest = now(blown) - rest;
     assert!(
@@ -276,7 +276,6 @@ fn ten_surfaces_run_at_once() {
 
 #[test]
 fn dense_points_by_pins_a_game_sets_hold_exactly() {
-    use bevy_point_springs::core::solver::hold_still;
     let mut app = create_app(&assets_dir(), TICK);
     let config = SurfaceConfig {
         simplify: SimplifyConfig::target(150),
@@ -289,13 +288,18 @@ fn dense_points_by_pins_a_game_sets_hold_exactly() {
     for _ in 0..5 {
         app.update();
     }
-    let world = app.world_mut();
-    let rest = world.get::<SurfaceNetwork>(e).unwrap().0.positions.clone();
-    let (mut masses, mut points) = world
-        .query::<(&mut SurfaceMasses, &mut SimulationPoints)>()
-        .get_mut(world, e)
+    let rest = app
+        .world()
+        .get::<SurfaceNetwork>(e)
+        .unwrap()
+        .positions
+        .clone();
+    let top = rest.clone();
+    app.world_mut()
+        .run_system_once(move |mut pins: SurfacePins| {
+            pins.pin_where(e, |i| top[i].y > 0.7).unwrap();
+        })
         .unwrap();
-    hold_still(&mut masses, &mut points, |i| rest[i].y > 0.7).unwrap();
     app.update();
     let held_at = app
         .world()
@@ -496,7 +500,7 @@ fn an_interpolated_surface_is_drawn_between_its_last_two_ticks() {
     let surface = app.world_mut().spawn((floating(1200, 120), Windy)).id();
     assert_eq!(
         app.world()
-            .get::<SurfaceSettings>(surface)
+            .get::<SurfaceRunSettings>(surface)
             .unwrap()
             .transfer,
         TransferTiming::Interpolated
@@ -519,7 +523,7 @@ fn an_interpolated_surface_is_drawn_between_its_last_two_ticks() {
         assert_eq!(previous.len(), points.len());
         // The dense surface at each of the two ticks, by the same transfer.
         let at = |positions: &[Vec3]| -> Vec<Vec3> {
-            let mut cloud = dense.0.clone();
+            let mut cloud = DenseCloud::clone(dense);
             let state = bevy_point_springs::core::solver::PointState::new(positions).unwrap();
             bevy_point_springs::plugin::simulate::follow(&mut cloud, &state).unwrap();
             cloud.positions().to_vec()
@@ -560,7 +564,7 @@ fn transfer_once_per_frame_when_asked() {
         .world_mut()
         .spawn((
             floating(1200, 120),
-            SurfaceSettings {
+            SurfaceRunSettings {
                 transfer: TransferTiming::EveryTick,
                 ..default()
             },
@@ -570,7 +574,7 @@ fn transfer_once_per_frame_when_asked() {
         .world_mut()
         .spawn((
             floating(1200, 120),
-            SurfaceSettings {
+            SurfaceRunSettings {
                 transfer: TransferTiming::PerFrame,
                 ..default()
             },
@@ -594,7 +598,7 @@ fn transfer_once_per_frame_when_asked() {
     // After the frame, both dense surfaces follow their simulation's latest state exactly:
     // asked to follow it again, there is nothing to do.
     for e in [every_tick, per_frame] {
-        let mut dense = app.world().get::<DenseSurface>(e).unwrap().0.clone();
+        let mut dense = DenseCloud::clone(app.world().get::<DenseSurface>(e).unwrap());
         let points = app.world().get::<SimulationPoints>(e).unwrap();
         assert!(!dense.follow(points).unwrap());
     }
@@ -978,8 +982,6 @@ fn changed_dense_surface_fires_only_when_the_drawn_surface_moves() {
 /// the points and dense surface it reads are the local ones placed by the transform.
 #[test]
 fn world_space_pushes_and_reads_follow_the_surface_transform() {
-    use bevy::ecs::system::RunSystemOnce;
-
     #[derive(Resource)]
     struct Pushed(Entity);
     let mut app = create_app(&assets_dir(), TICK);
@@ -1059,8 +1061,6 @@ fn world_space_pushes_and_reads_follow_the_surface_transform() {
 /// where it was pinned, still; freed, it falls again. Bad indices are refused.
 #[test]
 fn a_pinned_point_stays_put_and_falls_again_when_freed() {
-    use bevy::ecs::system::RunSystemOnce;
-
     let mut app = create_app(&assets_dir(), TICK);
     let config = SurfaceConfig {
         simplify: SimplifyConfig::target(100),

@@ -1,16 +1,20 @@
 //! The plugin's modelling tools, headless (issue 17): plastic materials, baking and export
 //! through `ModelMessage`, and sleeping surfaces.
 
+use bevy::ecs::system::RunSystemOnce;
 use bevy::prelude::*;
 use bevy_point_springs::core::cloud::io::read_cloud;
+use bevy_point_springs::core::pipeline::DenseCloud;
 use bevy_point_springs::core::pipeline::NormalsSpec;
 use bevy_point_springs::core::solver::BendingModel;
+use bevy_point_springs::core::solver::{Masses, Springs};
 use bevy_point_springs::plugin::DEFAULT_SLEEP_AFTER;
 #[cfg(feature = "egui")]
 use bevy_point_springs::plugin::panel::PointSpringsPanelPlugin;
 use bevy_point_springs::plugin::{
-    Grabs, PreparationProgress, PrepareAgainFailed, SaveGameError, StepOnce, SurfaceInView,
-    SurfaceMasses, SurfaceNetwork, SurfaceSleep, SurfaceSprings, SurfaceTimings, SurfaceWork,
+    Grabs, PreparationProgress, PrepareAgainFailed, SaveGameError, SleepSettings, StepOnce,
+    SurfaceInView, SurfaceMasses, SurfaceNetwork, SurfaceRunSettings, SurfaceSleep, SurfaceSprings,
+    SurfaceStepper, SurfaceTimings, SurfaceWork,
 };
 use bevy_point_springs::prelude::*;
 
@@ -250,7 +254,7 @@ fn a_paused_surface_steps_once_on_request_and_resets_to_rest() {
     assert!(timings.forces_ms > 0.0 && timings.step_ms > 0.0 && timings.transfer_ms > 0.0);
     let steps = |app: &App| app.world().get::<SurfaceWork>(sphere).unwrap().steps;
     app.world_mut()
-        .get_mut::<SurfaceSettings>(sphere)
+        .get_mut::<SurfaceRunSettings>(sphere)
         .unwrap()
         .paused = true;
     app.update();
@@ -340,6 +344,42 @@ fn a_surface_out_of_view_simulates_without_transfer() {
 }
 
 #[test]
+fn a_status_set_back_to_pending_prepares_nothing_and_the_surface_runs_on() {
+    // `SurfaceStatus` is the plugin's report; `PrepareAgain` is the one way to prepare
+    // again. A game that writes `Pending` on a ready surface gets a warning, not a second
+    // preparation: the same network, the steps going on.
+    let mut app = create_app(&assets_dir(), TICK);
+    // Never asleep, so that it steps every tick.
+    let awake = SurfaceRunSettings {
+        sleep: SleepSettings {
+            speed: 0.0,
+            ..default()
+        },
+        ..default()
+    };
+    let sphere = app.world_mut().spawn((floating(1500, 100), awake)).id();
+    settle(&mut app, &[sphere]);
+    let network = |app: &App| {
+        app.world()
+            .get::<SurfaceNetwork>(sphere)
+            .unwrap()
+            .shared()
+            .clone()
+    };
+    let steps = |app: &App| app.world().get::<SurfaceWork>(sphere).unwrap().steps;
+    let before = network(&app);
+    *app.world_mut().get_mut::<SurfaceStatus>(sphere).unwrap() = SurfaceStatus::Pending;
+    let at = steps(&app);
+    for _ in 0..5 {
+        app.update();
+    }
+    assert!(status(&app, sphere).is_ready());
+    assert!(app.world().get::<PreparationProgress>(sphere).is_none());
+    assert!(std::sync::Arc::ptr_eq(&before, &network(&app)));
+    assert!(steps(&app) >= at + 4, "{} steps after {at}", steps(&app));
+}
+
+#[test]
 fn preparing_again_keeps_the_old_surface_running_until_the_new_one_is_ready() {
     let mut app = create_app(&assets_dir(), TICK);
     app.add_systems(FixedUpdate, wind.in_set(PointSpringsSystems::Forces));
@@ -380,6 +420,19 @@ fn preparing_again_keeps_the_old_surface_running_until_the_new_one_is_ready() {
         .insert(PrepareAgain(config));
     app.update();
     assert!(app.world().get::<PreparationProgress>(sphere).is_some());
+    // Changed while the preparation runs: the new simulation takes the material and the
+    // solver settings as they are when it lands.
+    app.world_mut()
+        .get_mut::<SurfaceMaterial>(sphere)
+        .unwrap()
+        .creep_rate = 0.5;
+    let mut solver = *app.world().get::<SurfaceStepper>(sphere).unwrap().config();
+    solver.drag = 0.75;
+    app.world_mut()
+        .get_mut::<SurfaceStepper>(sphere)
+        .unwrap()
+        .set_config(solver)
+        .unwrap();
     let started = steps(&app);
     let deadline = std::time::Instant::now() + SETTLE_TIMEOUT;
     while app.world().get::<PreparationProgress>(sphere).is_some() {
@@ -402,6 +455,9 @@ fn preparing_again_keeps_the_old_surface_running_until_the_new_one_is_ready() {
     assert!(status(&app, sphere).is_ready());
     let material = app.world().get::<SurfaceMaterial>(sphere).unwrap();
     assert_eq!(material.yield_strain, 0.07);
+    assert_eq!(material.creep_rate, 0.5);
+    let stepper = app.world().get::<SurfaceStepper>(sphere).unwrap();
+    assert_eq!(stepper.config().drag, 0.75);
     let ready = SurfaceReady {
         entity: sphere,
         again: true,
@@ -622,7 +678,6 @@ fn a_sculpted_and_baked_surface_on_hinges_goes_on_bit_for_bit_from_a_saved_game(
 
 #[test]
 fn a_saved_game_goes_on_bit_for_bit_in_a_fresh_app() {
-    use bevy_point_springs::core::solver::hold_still;
     let dir = std::env::temp_dir().join(format!("point-springs-save-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let file = dir.join("game.save");
@@ -630,18 +685,17 @@ fn a_saved_game_goes_on_bit_for_bit_in_a_fresh_app() {
     // baked, grabbed again (held while saving).
     let mut app = create_app(&assets_dir(), TICK);
     let sphere = named_gas_sphere(&mut app);
-    let world = app.world_mut();
-    let rest = world
+    let rest = app
+        .world()
         .get::<SurfaceNetwork>(sphere)
         .unwrap()
-        .0
         .positions
         .clone();
-    let (mut masses, mut points) = world
-        .query::<(&mut SurfaceMasses, &mut SimulationPoints)>()
-        .get_mut(world, sphere)
+    app.world_mut()
+        .run_system_once(move |mut pins: SurfacePins| {
+            pins.pin_where(sphere, |i| rest[i].y < -0.8).unwrap();
+        })
         .unwrap();
-    hold_still(&mut masses, &mut points, |i| rest[i].y < -0.8).unwrap();
     let mut material = app.world_mut().get_mut::<SurfaceMaterial>(sphere).unwrap();
     material.yield_strain = 0.05;
     material.creep_rate = 5.0;
@@ -810,11 +864,15 @@ fn a_bake_of_a_hundred_thousand_points_does_not_hold_up_the_tick() {
     // The same bake on the tick, as it was done before, on copies.
     let on_tick_ms = {
         let world = app.world();
-        let network = world.get::<SurfaceNetwork>(sphere).unwrap().0.clone();
+        let network = world
+            .get::<SurfaceNetwork>(sphere)
+            .unwrap()
+            .shared()
+            .clone();
         let mut points = world.get::<SimulationPoints>(sphere).unwrap().0.clone();
-        let mut springs = world.get::<SurfaceSprings>(sphere).unwrap().0.clone();
-        let mut masses = world.get::<SurfaceMasses>(sphere).unwrap().0.clone();
-        let mut dense = world.get::<DenseSurface>(sphere).unwrap().0.clone();
+        let mut springs = Springs::clone(world.get::<SurfaceSprings>(sphere).unwrap());
+        let mut masses = Masses::clone(world.get::<SurfaceMasses>(sphere).unwrap());
+        let mut dense = DenseCloud::clone(world.get::<DenseSurface>(sphere).unwrap());
         let density = world.get::<SurfaceMaterial>(sphere).unwrap().density;
         let start = std::time::Instant::now();
         let parts = bevy_point_springs::core::pipeline::BakeParts {

@@ -416,8 +416,8 @@ fn playground(solve: ContactSolve) {
 /// Settings that never let a surface sleep: the bench times a whole awake tick against the
 /// contacts' share of it, as it did before surfaces could sleep (a sheet with no ball near
 /// would otherwise fall asleep once it settled).
-fn awake() -> SurfaceSettings {
-    SurfaceSettings {
+fn awake() -> SurfaceRunSettings {
+    SurfaceRunSettings {
         sleep: SleepSettings {
             speed: 0.0,
             ..default()

@@ -249,7 +249,7 @@ impl CoreRun {
 fn dense_of(app: &App, entity: Entity) -> Result<&DenseCloud, Failure> {
     app.world()
         .get::<DenseSurface>(entity)
-        .map(|d| &d.0)
+        .map(|d| &**d)
         .ok_or_else(|| Failure::other("the surface has no dense surface"))
 }
 

@@ -342,12 +342,13 @@ fn orbit_camera(
     }
 }
 
-/// Space pauses, G cycles the gizmos (none, points, points and springs), R prepares every
-/// surface again (back to rest, the scene from its start).
+/// Space pauses, G cycles the gizmos (none, points, points and springs), R puts every
+/// ready surface back in its rest shape (a scene's timeline from its start).
 fn keys(
     keyboard: Res<ButtonInput<KeyCode>>,
     mut gizmos: ResMut<SpringGizmos>,
-    mut surfaces: Query<(&mut SurfaceSettings, &mut SurfaceStatus)>,
+    mut surfaces: Query<(Entity, &mut SurfaceRunSettings, &SurfaceStatus)>,
+    mut model: MessageWriter<ModelMessage>,
 ) {
     if keyboard.just_pressed(KeyCode::KeyG) {
         *gizmos = match (gizmos.points, gizmos.stretch) {
@@ -364,12 +365,12 @@ fn keys(
             (true, true) => SpringGizmos::default(),
         };
     }
-    for (mut settings, mut status) in &mut surfaces {
+    for (surface, mut settings, status) in &mut surfaces {
         if keyboard.just_pressed(KeyCode::Space) {
             settings.paused = !settings.paused;
         }
-        if keyboard.just_pressed(KeyCode::KeyR) {
-            *status = SurfaceStatus::Pending;
+        if keyboard.just_pressed(KeyCode::KeyR) && status.is_ready() {
+            model.write(ModelMessage::Reset { surface });
         }
         if keyboard.just_pressed(KeyCode::KeyI) {
             settings.transfer = match settings.transfer {
@@ -382,7 +383,7 @@ fn keys(
 }
 
 /// `--no-interpolation`: new surfaces show each tick's state as it ends.
-fn draw_ticks_as_they_end(mut surfaces: Query<&mut SurfaceSettings, Added<SurfaceSettings>>) {
+fn draw_ticks_as_they_end(mut surfaces: Query<&mut SurfaceRunSettings, Added<SurfaceRunSettings>>) {
     for mut settings in &mut surfaces {
         settings.transfer = TransferTiming::EveryTick;
     }
@@ -492,7 +493,7 @@ fn screenshot_and_exit(
     mut virtual_time: ResMut<Time<Virtual>>,
     mut started: ResMut<ScriptStarted>,
     mut clock: ResMut<TimeUpdateStrategy>,
-    mut surfaces: Query<(&SurfaceStatus, &mut SurfaceSettings)>,
+    mut surfaces: Query<(&SurfaceStatus, &mut SurfaceRunSettings)>,
     mut warmup: Local<u32>,
     mut frames: Local<FrameCount>,
     mut shot: Local<bool>,

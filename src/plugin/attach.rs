@@ -427,7 +427,7 @@ impl SurfaceAttachments {
     fn free_pins(&self, points: &[u32], masses: &mut SurfaceMasses) {
         for &i in points {
             if (i as usize) < masses.len() && !self.held_elsewhere(i, None) {
-                masses.set_pinned(i as usize, false).expect("in range");
+                masses.0.set_pinned(i as usize, false).expect("in range");
             }
         }
     }
@@ -486,6 +486,7 @@ impl SurfaceAttachments {
             .collect();
         for &i in &a.pinned {
             masses
+                .0
                 .set_pinned(i as usize, true)
                 .expect("picked in range");
         }
@@ -552,7 +553,7 @@ impl Attachment {
             let i = i as usize;
             if !masses.is_pinned(i) {
                 // The game freed it: the attachment holds it again.
-                masses.set_pinned(i, true).expect("in range");
+                masses.0.set_pinned(i, true).expect("in range");
             }
             let mut world = frames.target.transform_point3(offset);
             if let Some(motion) = motion {
@@ -712,7 +713,7 @@ pub fn hold_attachments(
             }
         }
         if stepper.measures_pins() != holding {
-            stepper.set_measure_pins(holding);
+            stepper.0.set_measure_pins(holding);
         }
     }
 }

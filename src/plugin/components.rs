@@ -32,8 +32,8 @@ use crate::core::pipeline::prepared::PreparedFileError;
 use crate::core::pipeline::{DenseCloud, Stage, SurfaceConfig};
 use crate::core::scene::{Scene, Timeline};
 use crate::core::solver::{
-    Anchors, BendingModel, ExternalForces, Masses, MaterialUnits, Model, PointState, Pressure,
-    SpringMaterial, Springs, Stepper,
+    Anchors, BendingModel, ExternalForces, Masses, MaterialUnits, PointState, Pressure,
+    SolverConfig, SolverError, SpringMaterial, Springs, StepParts, Stepper,
 };
 
 use super::assets::{CloudAsset, SceneAsset};
@@ -79,7 +79,7 @@ pub enum SurfaceSource {
     SurfaceStatus,
     SurfaceHealth,
     PreviousTick,
-    SurfaceSettings,
+    SurfaceRunSettings,
     SurfaceSleep,
     SurfaceWork,
     SurfaceTimings,
@@ -169,8 +169,10 @@ pub enum PreparedFileOutcome {
     },
 }
 
-/// Where a [`DeformableSurface`] is. Set it back to [`SurfaceStatus::Pending`] to prepare
-/// the surface again (after changing its source or settings).
+/// Where a [`DeformableSurface`] is: the plugin's report (read it, or observe
+/// [`SurfaceReady`](super::SurfaceReady) and [`SurfaceFailed`](super::SurfaceFailed)). To
+/// prepare a surface again, insert [`PrepareAgain`](super::PrepareAgain); a prepared
+/// surface whose status a game sets back to `Pending` gets a warning and runs on.
 #[derive(Component, Debug, Clone, Default, PartialEq, Reflect)]
 #[reflect(Component, Debug, Default)]
 pub enum SurfaceStatus {
@@ -253,10 +255,12 @@ impl PreviousTick {
     }
 }
 
-/// Per-surface settings of the plugin.
+/// How a prepared surface runs: when its dense surface follows, whether it is paused, when
+/// it sleeps. (How it is prepared, and the material and solver it starts with, are the
+/// [`SurfaceConfig`] of its [`DeformableSurface`].)
 #[derive(Component, Debug, Clone, Copy, PartialEq, Default, Reflect)]
 #[reflect(Component, Debug, Default)]
-pub struct SurfaceSettings {
+pub struct SurfaceRunSettings {
     /// When the dense surface follows the simulation.
     pub transfer: TransferTiming,
     /// Whether the simulation is held (no forces, no steps).
@@ -378,12 +382,12 @@ pub struct SimulationPoints(pub PointState);
 /// density: see [`SpringNetwork::share_dense_area`](crate::core::network::SpringNetwork::share_dense_area))
 /// and which of them are pinned. Pin and free points with [`SurfacePins`](super::SurfacePins),
 /// which also stops them.
-#[derive(Component, Debug, Clone, Default, Deref, DerefMut)]
-pub struct SurfaceMasses(pub Masses);
+#[derive(Component, Debug, Clone, Default, Deref)]
+pub struct SurfaceMasses(pub(crate) Masses);
 
 /// The stretch and bend springs (eq 2–3).
-#[derive(Component, Debug, Clone, Default, Deref, DerefMut)]
-pub struct SurfaceSprings(pub Springs);
+#[derive(Component, Debug, Clone, Default, Deref)]
+pub struct SurfaceSprings(pub(crate) Springs);
 
 /// Anchor springs from simulation points to points in the surface's coordinates (eq 5):
 /// pokes, drags, soft pins. Add, move and remove them at any time.
@@ -400,9 +404,19 @@ pub struct SurfaceForces(pub ExternalForces);
 #[derive(Component, Debug, Clone, Deref, DerefMut)]
 pub struct SurfacePressure(pub Pressure);
 
-/// The integrator's settings, force buffers and running totals.
-#[derive(Component, Debug, Clone, Default, Deref, DerefMut)]
-pub struct SurfaceStepper(pub Stepper);
+/// The integrator's settings, force buffers and running totals. Read them through
+/// [`Stepper`]'s methods; change the settings with [`SurfaceStepper::set_config`] (the
+/// force buffers and totals are the plugin's).
+#[derive(Component, Debug, Clone, Default, Deref)]
+pub struct SurfaceStepper(pub(crate) Stepper);
+
+impl SurfaceStepper {
+    /// Changes the solver settings (integrator, gravity, drag, sub-steps, …) from the next
+    /// step on; refused, with nothing changed, when they do not validate.
+    pub fn set_config(&mut self, config: SolverConfig) -> Result<(), SolverError> {
+        self.0.set_config(config)
+    }
+}
 
 /// The surface's material ([`SpringMaterial`]: density, spring stiffness and damping,
 /// plasticity). Changing it sets every spring's stiffness, damping and plasticity anew (the
@@ -469,12 +483,20 @@ pub enum MaterialUnitsReflect {
 /// The simulation points at rest: positions, normals, rings, springs and masses as §3–§4
 /// built them.
 #[derive(Component, Debug, Clone, Deref)]
-pub struct SurfaceNetwork(pub Arc<SpringNetwork>);
+pub struct SurfaceNetwork(pub(crate) Arc<SpringNetwork>);
+
+impl SurfaceNetwork {
+    /// The network, shared (cloning the `Arc` is cheap: hand it to a task or keep it as the
+    /// rest state to compare with).
+    pub fn shared(&self) -> &Arc<SpringNetwork> {
+        &self.0
+    }
+}
 
 /// The dense surface: its rest cloud and transfer coefficients, and its deformed positions
 /// and normals (in the surface's own coordinates), updated as the simulation moves.
-#[derive(Component, Debug, Clone, Deref, DerefMut)]
-pub struct DenseSurface(pub DenseCloud);
+#[derive(Component, Debug, Clone, Deref)]
+pub struct DenseSurface(pub(crate) DenseCloud);
 
 /// On a surface whose transfer runs on the GPU (the renderer adds it, see
 /// `SurfelRender::device`): the simulation points to draw this frame, which the transfer
@@ -524,7 +546,7 @@ pub struct SceneTimeline(pub Timeline);
 
 /// The read-only parts of a surface a step needs, as one query item.
 #[derive(QueryData)]
-pub(crate) struct ModelQuery {
+pub(crate) struct StepPartsQuery {
     masses: &'static SurfaceMasses,
     springs: &'static SurfaceSprings,
     anchors: &'static SurfaceAnchors,
@@ -532,10 +554,10 @@ pub(crate) struct ModelQuery {
     network: &'static SurfaceNetwork,
 }
 
-impl ModelQueryItem<'_, '_> {
-    /// The parts as the core's [`Model`].
-    pub(crate) fn model(&self) -> Model<'_> {
-        Model {
+impl StepPartsQueryItem<'_, '_> {
+    /// The parts as the core's [`StepParts`].
+    pub(crate) fn step_parts(&self) -> StepParts<'_> {
+        StepParts {
             masses: self.masses,
             springs: self.springs,
             anchors: self.anchors,

@@ -68,8 +68,9 @@ pub use components::{
     DEFAULT_SLEEP_AFTER, DEFAULT_SLEEP_SPEED, DeformableSurface, DenseSurface, GpuTransferInput,
     PreparationProgress, PreparedFileOutcome, PreviousTick, SceneTimeline, SimulationPoints,
     SleepSettings, StepOnce, SurfaceAnchors, SurfaceForces, SurfaceInView, SurfaceMasses,
-    SurfaceMaterial, SurfaceNetwork, SurfacePressure, SurfaceSettings, SurfaceSleep, SurfaceSource,
-    SurfaceSprings, SurfaceStatus, SurfaceStepper, SurfaceTimings, SurfaceWork, TransferTiming,
+    SurfaceMaterial, SurfaceNetwork, SurfacePressure, SurfaceRunSettings, SurfaceSleep,
+    SurfaceSource, SurfaceSprings, SurfaceStatus, SurfaceStepper, SurfaceTimings, SurfaceWork,
+    TransferTiming,
 };
 #[cfg(feature = "rapier")]
 pub use contact::{
@@ -185,7 +186,7 @@ pub enum PointSpringsSystems {
 impl Plugin for PointSpringsPlugin {
     fn build(&self, app: &mut App) {
         app.register_type::<SurfaceStatus>()
-            .register_type::<SurfaceSettings>()
+            .register_type::<SurfaceRunSettings>()
             .register_type::<SurfaceMaterial>()
             .register_type::<PreparationProgress>()
             .register_type::<SurfaceTimings>()

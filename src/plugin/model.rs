@@ -342,14 +342,14 @@ fn reset(
     points: &mut SimulationPoints,
     springs: &mut SurfaceSprings,
 ) -> Result<(), SolverError> {
-    springs.set_rest_lengths(|i| network.rest_length(i))?;
+    springs.0.set_rest_lengths(|i| network.rest_length(i))?;
     for (i, &p) in network.positions.iter().enumerate() {
         points.set_position(i, p)?;
     }
     points.stop();
     if !springs.hinges().is_empty() {
         // Plastic flow moved the rest angles too: measured again on the rest shape.
-        springs.set_rest_angles(points)?;
+        springs.0.set_rest_angles(points)?;
     }
     Ok(())
 }

@@ -189,7 +189,7 @@ pub(crate) fn surfel_picking(
             if !ray_meets_box(origin, direction, cache.bounds) {
                 continue;
             }
-            if gpu && let Err(e) = super::simulate::follow(&mut dense, points) {
+            if gpu && let Err(e) = super::simulate::follow(&mut dense.0, points) {
                 warn!("point-springs: picking surface {entity}: {e}");
                 continue;
             }

@@ -2,13 +2,15 @@
 //! the asset server, and the one core pipeline ([`prepare_surface`], or a scene's
 //! [`Scene::prepare_cloud`](crate::core::scene::Scene::prepare_cloud)) runs on Bevy's async
 //! compute pool, reporting [`PreparationProgress`]. When it is done the simulation's
-//! components are inserted. Despawning the entity (or setting its status back to
-//! `Pending`) drops the task, which tells the pipeline to stop at its next progress
-//! report.
+//! components are inserted. Despawning the entity drops the task, which tells the
+//! pipeline to stop at its next progress report.
 //!
-//! **Preparing again.** A [`PrepareAgain`] on a ready surface prepares it with new settings
-//! (the panel's simplification level, say) in the background while the old simulation runs
-//! on; the new one replaces it when it is ready, or [`PrepareAgainFailed`] says why not.
+//! **Preparing again.** [`PrepareAgain`] is the one way: on a ready surface it prepares it
+//! with new settings (the panel's simplification level, say) in the background while the
+//! old simulation runs on; the new one replaces it when it is ready, or
+//! [`PrepareAgainFailed`] says why not. [`SurfaceStatus`] is the plugin's report: a game
+//! that sets a prepared surface's status back to `Pending` gets a warning, and the surface
+//! runs on.
 //!
 //! **Threads.** The pipeline's own parallel loops use rayon. Inside a Bevy app they run in
 //! a rayon pool of the plugin's ([`PreparationPool`]) with as many threads as Bevy's async
@@ -82,7 +84,8 @@ impl PreparationPool {
 
 /// Prepares a surface again with these settings, from its source: a baked or sculpted
 /// shape is not kept. A ready surface keeps its run-time material and solver settings
-/// ([`SurfaceMaterial`], [`SurfaceStepper`], their one owner): change those there; the
+/// ([`SurfaceMaterial`], [`SurfaceStepper`], their one owner), as they are when the new
+/// simulation takes over (changes made meanwhile included): change those there; the
 /// settings here give the rest (normals, simplification, network, transfer, gas). On a ready surface the old simulation keeps running until the new
 /// one is ready (with [`PreparationProgress`] present meanwhile), and
 /// [`DeformableSurface::config`] takes the settings then; a surface being prepared takes
@@ -103,6 +106,18 @@ struct Prepared {
     timeline: Option<Timeline>,
     /// What became of the prepared file, when the surface has one.
     file: Option<PreparedFileOutcome>,
+}
+
+impl Prepared {
+    /// Takes `config`'s material and solver settings (the running surface's, as they are
+    /// now) in place of those it was prepared with. The springs follow the material when
+    /// it is inserted ([`apply_materials`](super::simulate::apply_materials) sees it added).
+    fn keep_running_settings(&mut self, config: &SurfaceConfig) {
+        self.surface.config.material = config.material;
+        if let Err(e) = self.surface.solver.set_config(config.solver) {
+            warn!("the running solver settings were not kept ({e}); the prepared ones are used");
+        }
+    }
 }
 
 /// Progress shared between a preparation task and the app.
@@ -215,6 +230,18 @@ type StartParts = (
     &'static mut SurfaceStatus,
     Option<&'static PrepareAgain>,
     Option<(&'static SurfaceMaterial, &'static SurfaceStepper)>,
+    Has<SurfaceNetwork>,
+);
+
+/// What [`finish_preparation`] reads and changes of a surface: with its run-time settings
+/// when it runs.
+type FinishParts = (
+    Entity,
+    &'static mut PreparationTask,
+    &'static mut PreparationProgress,
+    &'static mut SurfaceStatus,
+    &'static mut DeformableSurface,
+    Option<(&'static SurfaceMaterial, &'static SurfaceStepper)>,
 );
 
 /// Starts preparing surfaces whose status is `Pending` (or `Loading`, once their files
@@ -227,7 +254,17 @@ pub(crate) fn start_preparation(
     clouds: Option<Res<Assets<CloudAsset>>>,
     mut surfaces: Query<StartParts>,
 ) {
-    for (entity, mut surface, mut status, again, running) in &mut surfaces {
+    for (entity, mut surface, mut status, again, running, prepared) in &mut surfaces {
+        if *status == SurfaceStatus::Pending && prepared && again.is_none() {
+            // The status is the plugin's report: a game that set it back to `Pending` to
+            // prepare again is told the one way, and the surface runs on.
+            warn!(
+                "{entity}: SurfaceStatus is the plugin's report, not a request; insert \
+                 PrepareAgain to prepare a surface again (it runs on as it was)"
+            );
+            *status = SurfaceStatus::Ready;
+            continue;
+        }
         let background = again.is_some() && status.is_ready();
         // A running surface's material and solver settings are its components' (their one
         // owner): preparing again keeps them.
@@ -421,15 +458,9 @@ fn prepare_unpinned(
 pub(crate) fn finish_preparation(
     mut commands: Commands,
     mut grabs: ResMut<Grabs>,
-    mut surfaces: Query<(
-        Entity,
-        &mut PreparationTask,
-        &mut PreparationProgress,
-        &mut SurfaceStatus,
-        &mut DeformableSurface,
-    )>,
+    mut surfaces: Query<FinishParts>,
 ) {
-    for (entity, mut task, mut progress, mut status, mut surface) in &mut surfaces {
+    for (entity, mut task, mut progress, mut status, mut surface, running) in &mut surfaces {
         let expected = if task.background.is_some() {
             SurfaceStatus::Ready
         } else {
@@ -449,8 +480,15 @@ pub(crate) fn finish_preparation(
         let mut entity_commands = commands.entity(entity);
         entity_commands.remove::<(PreparationTask, PreparationProgress)>();
         match result {
-            Ok(prepared) => {
-                if let Some(config) = task.background {
+            Ok(mut prepared) => {
+                if let Some(mut config) = task.background {
+                    // The material and solver settings as they are now: a game may have
+                    // changed them while the preparation ran (their components own them).
+                    if let Some((material, stepper)) = running {
+                        config.material = material.0;
+                        config.solver = *stepper.config();
+                        prepared.keep_running_settings(&config);
+                    }
                     surface.config = config;
                     // The old anchors go with the old simulation: so do grabs holding them.
                     grabs.forget_surface(entity);

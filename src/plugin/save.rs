@@ -18,7 +18,7 @@
 //! refused onto one baked since it was prepared.
 //!
 //! Not saved: the surface's `Transform`, the game's own settings of a surface
-//! ([`SurfaceSettings`](super::SurfaceSettings), whether it is in view), its
+//! ([`SurfaceRunSettings`](super::SurfaceRunSettings), whether it is in view), its
 //! [`SurfaceHealth`](super::SurfaceHealth), work counters and timings, dense points a game
 //! named held itself ([`DenseCloud::hold_where`](crate::core::pipeline::DenseCloud::hold_where))
 //! on a surface never baked, and anything outside the surfaces (rapier bodies, the clock).
@@ -209,7 +209,7 @@ pub(crate) fn catch_up_before_save(
         return;
     }
     for (entity, points, mut dense) in &mut surfaces {
-        if let Err(e) = super::simulate::follow(&mut dense, points) {
+        if let Err(e) = super::simulate::follow(&mut dense.0, points) {
             warn!(
                 "point-springs: surface {entity}: its dense surface could not be brought up to date for the save: {e}"
             );
@@ -443,7 +443,7 @@ fn load(
         let old = dense.revision();
         dense.0 = r.dense.clone();
         // Uploads and caches that saw the old cloud must see a change.
-        dense.advance_revision_past(old);
+        dense.0.advance_revision_past(old);
         if let (Some(mut t), Some(new)) = (timeline, r.timeline.take()) {
             t.bypass_change_detection().0 = new;
         }

@@ -30,10 +30,10 @@ use crate::core::solver::{Masses, PointState, SolverError, SpringMaterial};
 use crate::core::transfer::TransferError;
 
 use super::components::{
-    DenseSurface, GpuTransferInput, ModelQuery, PreviousTick, SceneTimeline, SimulationPoints,
-    StepOnce, SurfaceAnchors, SurfaceForces, SurfaceInView, SurfaceMasses, SurfaceMaterial,
-    SurfaceNetwork, SurfaceSettings, SurfaceSleep, SurfaceSprings, SurfaceStatus, SurfaceStepper,
-    SurfaceTimings, SurfaceWork, TransferTiming,
+    DenseSurface, GpuTransferInput, PreviousTick, SceneTimeline, SimulationPoints, StepOnce,
+    StepPartsQuery, SurfaceAnchors, SurfaceForces, SurfaceInView, SurfaceMasses, SurfaceMaterial,
+    SurfaceNetwork, SurfaceRunSettings, SurfaceSleep, SurfaceSprings, SurfaceStatus,
+    SurfaceStepper, SurfaceTimings, SurfaceWork, TransferTiming,
 };
 use super::lifecycle::SurfaceError;
 
@@ -43,18 +43,22 @@ pub const PARALLEL_TRANSFER_POINTS: usize = 16_384;
 
 /// Whether a surface steps this tick: ready, and not paused unless asked for one step
 /// ([`StepOnce`]).
-pub(crate) fn running(status: &SurfaceStatus, settings: &SurfaceSettings, step_once: bool) -> bool {
+pub(crate) fn running(
+    status: &SurfaceStatus,
+    settings: &SurfaceRunSettings,
+    step_once: bool,
+) -> bool {
     status.is_ready() && (!settings.paused || step_once)
 }
 
 /// What [`running`] reads besides the status: the settings, and whether one step was asked
 /// for.
-pub(crate) type Gate = (&'static SurfaceSettings, Has<StepOnce>);
+pub(crate) type Gate = (&'static SurfaceRunSettings, Has<StepOnce>);
 
 /// What [`accumulate_forces`] reads and changes of a surface.
 type ForceParts = (
     &'static SimulationPoints,
-    ModelQuery,
+    StepPartsQuery,
     &'static mut SurfaceStepper,
     &'static mut SurfaceStatus,
     Gate,
@@ -150,19 +154,22 @@ pub(crate) fn apply_materials(
         }
         let rest: Vec<f32> = springs.hinges().iter().map(|h| h.rest_angle).collect();
         let applied = springs
+            .0
             .set_parameters(|i| (specs[i].stiffness, specs[i].damping))
             .and_then(|()| {
-                springs.set_hinge_parameters(|i| [rest[i], hinges[i].stiffness, hinges[i].damping])
+                springs
+                    .0
+                    .set_hinge_parameters(|i| [rest[i], hinges[i].stiffness, hinges[i].damping])
             })
-            .and_then(|()| springs.set_couplings(&material.couplings(network)))
+            .and_then(|()| springs.0.set_couplings(&material.couplings(network)))
             .and_then(|()| {
                 // New modulus and damping; the rest curvatures as they are (plastic flow).
-                springs.set_curvature_parameters(|i| {
+                springs.0.set_curvature_parameters(|i| {
                     let [c, d, e] = bent[i].rest;
                     [c, d, e, curvatures[i].modulus, curvatures[i].damping]
                 })
             })
-            .and_then(|()| springs.set_plasticity(material.plasticity()));
+            .and_then(|()| springs.0.set_plasticity(material.plasticity()));
         if let Err(e) = applied {
             // Refused: the springs keep their old parameters and the surface runs on.
             error!("point-springs surface {entity}: material not applied: {e}");
@@ -180,7 +187,7 @@ pub(crate) fn accumulate_forces(mut surfaces: Query<ForceParts>) {
                 return;
             }
             let start = Instant::now();
-            if let Err(e) = stepper.accumulate_forces(points, parts.model()) {
+            if let Err(e) = stepper.0.accumulate_forces(points, parts.step_parts()) {
                 fail(&mut status, solver_failed("forces", e));
             }
             timings.forces_ms = ms_since(start);
@@ -191,7 +198,7 @@ pub(crate) fn accumulate_forces(mut surfaces: Query<ForceParts>) {
 /// What [`integrate`] reads and changes of a surface.
 type StepParts = (
     &'static mut SimulationPoints,
-    ModelQuery,
+    StepPartsQuery,
     &'static mut SurfaceForces,
     &'static mut SurfaceStepper,
     &'static mut SurfaceStatus,
@@ -225,11 +232,14 @@ pub(crate) fn integrate(time: Res<Time>, mut surfaces: Query<StepParts>) {
                 return;
             }
             let start = Instant::now();
-            match stepper.advance(&mut points, parts.model(), &forces, dt) {
+            match stepper
+                .0
+                .advance(&mut points, parts.step_parts(), &forces, dt)
+            {
                 Ok(report) => {
                     work.steps += 1;
                     work.springs_evaluated +=
-                        u64::from(report.substeps) * parts.model().springs.len() as u64;
+                        u64::from(report.substeps) * parts.step_parts().springs.len() as u64;
                 }
                 Err(e) => fail(&mut status, solver_failed("step", e)),
             }
@@ -250,7 +260,7 @@ pub(crate) fn plastic_flow(time: Res<Time>, mut surfaces: Query<FlowParts>) {
                 && !springs.plasticity().is_elastic()
             {
                 let start = Instant::now();
-                springs.flow(points, dt);
+                springs.0.flow(points, dt);
                 timings.step_ms += ms_since(start);
             }
         },
@@ -270,7 +280,7 @@ type TransferParts = (
         Option<&'static mut GpuTransferInput>,
     ),
     &'static mut SurfaceStatus,
-    (&'static SurfaceSettings, Ref<'static, SurfaceInView>),
+    (&'static SurfaceRunSettings, Ref<'static, SurfaceInView>),
     (&'static mut SurfaceWork, &'static mut SurfaceTimings),
 );
 
@@ -296,7 +306,7 @@ pub(crate) fn transfer_tick(mut surfaces: Query<TransferParts>) {
         }
         let start = Instant::now();
         // Marked changed only where the drawn surface changes (see `follow_counted`).
-        let cloud = dense.bypass_change_detection();
+        let cloud = &mut dense.bypass_change_detection().0;
         let Some(refit) = hold_or_fail(cloud, masses, &mut status) else {
             continue;
         };
@@ -381,7 +391,7 @@ pub(crate) fn transfer_frame(time: Option<Res<Time<Fixed>>>, mut surfaces: Query
         let due = settings.transfer != TransferTiming::EveryTick || in_view.is_changed();
         if status.is_ready() && in_view.0 && due {
             let start = Instant::now();
-            let cloud = dense.bypass_change_detection();
+            let cloud = &mut dense.bypass_change_detection().0;
             let Some(refit) = hold_or_fail(cloud, masses, &mut status) else {
                 continue;
             };
@@ -434,7 +444,7 @@ fn blend<'a>(previous: &'a mut PreviousTick, points: &'a PointState, along: f32)
 pub(crate) fn remember_previous_tick(
     mut surfaces: Query<(
         &SimulationPoints,
-        &SurfaceSettings,
+        &SurfaceRunSettings,
         &SurfaceStatus,
         &mut PreviousTick,
     )>,

@@ -10,7 +10,7 @@ use bevy::prelude::*;
 
 use super::components::{
     SceneTimeline, SimulationPoints, StepOnce, SurfaceAnchors, SurfaceForces, SurfaceMaterial,
-    SurfaceSettings, SurfaceSleep, SurfaceStatus,
+    SurfaceRunSettings, SurfaceSleep, SurfaceStatus,
 };
 
 /// What [`wake_surfaces`] reads of a surface to tell whether something acted on it.
@@ -19,7 +19,7 @@ type WakeParts = (
     &'static SurfaceForces,
     &'static SurfaceAnchors,
     Ref<'static, SurfaceMaterial>,
-    Ref<'static, SurfaceSettings>,
+    Ref<'static, SurfaceRunSettings>,
     Has<StepOnce>,
 );
 
@@ -51,7 +51,7 @@ pub(crate) fn settle_surfaces(
     mut surfaces: Query<(
         &mut SimulationPoints,
         &mut SurfaceSleep,
-        &SurfaceSettings,
+        &SurfaceRunSettings,
         &SurfaceStatus,
         Option<&SceneTimeline>,
     )>,

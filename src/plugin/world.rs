@@ -230,9 +230,9 @@ impl SurfacePins<'_, '_> {
         }
         if pinned {
             // In range: checked above.
-            let _ = hold_still(&mut masses, &mut points, |j| j == i);
+            let _ = hold_still(&mut masses.0, &mut points, |j| j == i);
         } else {
-            let _ = masses.set_pinned(i, false);
+            let _ = masses.0.set_pinned(i, false);
         }
         Ok(())
     }
@@ -252,16 +252,30 @@ impl SurfacePins<'_, '_> {
                 value: Vec3::new(radius, 0.0, 0.0),
             });
         }
-        let (transform, mut points, mut masses) = self
+        let (transform, points, _) = self
             .surfaces
-            .get_mut(surface)
+            .get(surface)
             .map_err(|_| WorldSurfaceError::NotASurface(surface))?;
         let near: Vec<bool> = points
             .iter_positions()
             .map(|p| transform.transform_point(p).distance_squared(at) <= radius * radius)
             .collect();
+        self.pin_where(surface, |j| near[j])
+    }
+
+    /// Pins, and stops, every simulation point of `surface` that `held` picks (by index;
+    /// the rest positions are [`SurfaceNetwork`](super::SurfaceNetwork)'s). Returns how many.
+    pub fn pin_where(
+        &mut self,
+        surface: Entity,
+        held: impl Fn(usize) -> bool,
+    ) -> Result<usize, WorldSurfaceError> {
+        let (_, mut points, mut masses) = self
+            .surfaces
+            .get_mut(surface)
+            .map_err(|_| WorldSurfaceError::NotASurface(surface))?;
         let count = masses.len().min(points.len());
-        hold_still(&mut masses, &mut points, |j| j < count && near[j]).map_err(|_| {
+        hold_still(&mut masses.0, &mut points, |j| j < count && held(j)).map_err(|_| {
             WorldSurfaceError::PointOutOfRange {
                 index: count,
                 points: count,
@@ -307,7 +321,7 @@ pub(crate) fn apply_world_gravity(
         if stepper.config().gravity == local {
             continue;
         }
-        match stepper.set_gravity(local) {
+        match stepper.0.set_gravity(local) {
             Ok(()) => {
                 *sleep = SurfaceSleep {
                     acted: true,

@@ -8,9 +8,9 @@
 
 use std::time::{Duration, Instant};
 
+use bevy::ecs::system::RunSystemOnce;
 use bevy::prelude::*;
 use bevy_point_springs::core::cloud::shapes;
-use bevy_point_springs::core::solver::hold_still;
 use bevy_point_springs::plugin::{
     PrepareAgainFailed, SurfaceHealth, SurfaceInView, SurfaceMasses, SurfaceNetwork,
 };
@@ -117,20 +117,25 @@ fn entities(app: &mut App) -> usize {
 /// Pins the points of `e`'s top cap (rest y above 0.25) where they are, or frees them where
 /// some are pinned.
 fn toggle_pins(app: &mut App, e: Entity) {
-    let world = app.world_mut();
-    let rest = world.get::<SurfaceNetwork>(e).unwrap().0.positions.clone();
-    let (mut masses, mut points) = world
-        .query::<(&mut SurfaceMasses, &mut SimulationPoints)>()
-        .get_mut(world, e)
+    let rest = app
+        .world()
+        .get::<SurfaceNetwork>(e)
+        .unwrap()
+        .positions
+        .clone();
+    let pinned = app.world().get::<SurfaceMasses>(e).unwrap().pinned();
+    app.world_mut()
+        .run_system_once(move |mut pins: SurfacePins| {
+            let cap = |i: usize| rest[i].y > 0.25;
+            if pinned > 0 {
+                for i in 0..rest.len() {
+                    pins.free(e, i).unwrap();
+                }
+            } else if (0..rest.len()).any(cap) {
+                pins.pin_where(e, cap).unwrap();
+            }
+        })
         .unwrap();
-    let cap = |i: usize| rest[i].y > 0.25;
-    if masses.pinned() > 0 {
-        for i in 0..rest.len() {
-            masses.set_pinned(i, false).unwrap();
-        }
-    } else if (0..rest.len()).any(cap) {
-        hold_still(&mut masses, &mut points, cap).unwrap();
-    }
 }
 
 /// The troubled steps of surface `e` so far (which must not have failed).
@@ -333,7 +338,8 @@ fn the_plugin_under_churn() {
                 }
                 8 => {
                     if let Some(e) = target {
-                        let mut settings = app.world_mut().get_mut::<SurfaceSettings>(e).unwrap();
+                        let mut settings =
+                            app.world_mut().get_mut::<SurfaceRunSettings>(e).unwrap();
                         settings.paused = !settings.paused;
                         tally.pauses += 1;
                     }

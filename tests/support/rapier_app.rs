@@ -7,10 +7,10 @@
 
 use std::time::Duration;
 
+use bevy::ecs::system::RunSystemOnce;
 use bevy::prelude::*;
 use bevy::time::TimeUpdateStrategy;
-use bevy_point_springs::core::solver::hold_still;
-use bevy_point_springs::plugin::{SurfaceContactPlugin, SurfaceMasses, SurfaceNetwork};
+use bevy_point_springs::plugin::{SurfaceContactPlugin, SurfaceNetwork};
 use bevy_point_springs::prelude::*;
 use bevy_rapier3d::prelude::*;
 
@@ -38,17 +38,17 @@ pub fn create_app() -> App {
 /// Pins, where they are and at rest ([`hold_still`]), the points whose rest position `held`
 /// picks.
 #[allow(dead_code)] // not every test file that includes this pins
-pub fn pin(app: &mut App, surface: Entity, held: impl Fn(Vec3) -> bool) {
+pub fn pin(app: &mut App, surface: Entity, held: impl Fn(Vec3) -> bool + Send + Sync + 'static) {
     let rest = app
         .world()
         .get::<SurfaceNetwork>(surface)
         .unwrap()
-        .0
+        .shared()
         .clone();
-    let world = app.world_mut();
-    let (mut masses, mut points) = world
-        .query::<(&mut SurfaceMasses, &mut SimulationPoints)>()
-        .get_mut(world, surface)
+    app.world_mut()
+        .run_system_once(move |mut pins: SurfacePins| {
+            pins.pin_where(surface, |i| held(rest.positions[i]))
+                .unwrap();
+        })
         .unwrap();
-    hold_still(&mut masses, &mut points, |i| held(rest.positions[i])).unwrap();
 }

@@ -30,8 +30,8 @@ use glam::{DMat3, DVec3, Vec3};
 use super::parts::{
     CouplingBlock, CurvatureBlock, Curvatures, ExternalForces, HingeBlock, PointState, Springs,
 };
-use super::springs::COINCIDENT_DISTANCE;
-use super::stepper::{Model, Stepper};
+use super::spring_layout::COINCIDENT_DISTANCE;
+use super::stepper::{StepParts, Stepper};
 use super::{DampingModel, SolverConfig};
 
 mod carried;
@@ -388,7 +388,7 @@ impl Stepper {
     pub(super) fn implicit_step(
         &mut self,
         points: &mut PointState,
-        model: Model<'_>,
+        model: StepParts<'_>,
         external: &ExternalForces,
         h: f32,
     ) -> CgOutcome {
@@ -490,7 +490,7 @@ fn assemble(
         curvature_normals,
     }: Forces<'_>,
     points: &PointState,
-    model: Model<'_>,
+    model: StepParts<'_>,
     config: &SolverConfig,
     h: f64,
 ) -> f64 {
@@ -644,7 +644,7 @@ const FLAT_INERTIA: f64 = 1e-12;
 fn keep_momenta(
     s: &mut Scratch,
     points: &PointState,
-    model: Model<'_>,
+    model: StepParts<'_>,
     external: &ExternalForces,
     config: &SolverConfig,
     h: f64,
@@ -952,7 +952,7 @@ mod tests {
     /// entry (3i + r, 3j + c).
     fn reference_matrix(
         points: &PointState,
-        model: Model<'_>,
+        model: StepParts<'_>,
         config: &SolverConfig,
         h: f64,
         (gas, gas_scale): (&[DVec3], f64),
@@ -1148,7 +1148,7 @@ mod tests {
             50.0,
         )
         .unwrap();
-        let model = Model {
+        let model = StepParts {
             masses: &masses,
             springs: &springs,
             anchors: &anchors,

@@ -79,7 +79,7 @@ mod implicit;
 mod parts;
 mod prefactored;
 mod report;
-mod springs;
+mod spring_layout;
 mod state;
 mod stepper;
 
@@ -107,9 +107,9 @@ pub use parts::{
     angle_difference, fit_weights, hold_still,
 };
 pub use report::{Diagnostics, Energy, Instability, SolverError, Stability, StepReport};
-pub use springs::{COINCIDENT_DISTANCE, SpringSpec};
+pub use spring_layout::{COINCIDENT_DISTANCE, SpringSpec};
 pub use state::{SolverState, StateParts, StatePartsMut};
-pub use stepper::{Model, Stepper};
+pub use stepper::{StepParts, Stepper};
 
 /// Largest magnitude a coordinate or velocity component may reach before the guard treats
 /// the state as runaway: the coordinate limit of every input
@@ -301,8 +301,8 @@ impl Solver {
     }
 
     /// The read-only parts a step needs.
-    pub fn model(&self) -> Model<'_> {
-        Model {
+    pub fn step_parts(&self) -> StepParts<'_> {
+        StepParts {
             masses: &self.masses,
             springs: &self.springs,
             anchors: &self.anchors,
@@ -493,7 +493,7 @@ impl Solver {
 
     /// The stable-step estimate for the current network, masses, anchors and drag.
     pub fn stability(&mut self) -> Stability {
-        let model = Model {
+        let model = StepParts {
             masses: &self.masses,
             springs: &self.springs,
             anchors: &self.anchors,
@@ -506,7 +506,7 @@ impl Solver {
     /// Advances the state by `dt` seconds: [`Stepper::accumulate_forces`], then
     /// [`Stepper::advance`].
     pub fn step(&mut self, dt: f32) -> Result<StepReport, SolverError> {
-        let model = Model {
+        let model = StepParts {
             masses: &self.masses,
             springs: &self.springs,
             anchors: &self.anchors,
@@ -523,6 +523,6 @@ impl Solver {
 
     /// Kinetic, spring, gravitational and anchor energy of the current state.
     pub fn energy(&self) -> Energy {
-        self.stepper.energy(&self.points, self.model())
+        self.stepper.energy(&self.points, self.step_parts())
     }
 }

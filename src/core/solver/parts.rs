@@ -30,7 +30,7 @@ pub use hinges::{DEGENERATE_HEIGHT, HingeGeometry, HingeSpec, Hinges, angle_diff
 pub use pressure::Pressure;
 
 use super::contact::{CarriedPoint, StepBody, StepContact};
-use super::springs::SpringLayout;
+use super::spring_layout::SpringLayout;
 use super::{Anchor, AnchorId, Plasticity, STATE_LIMIT, SolverError, SpringSpec};
 
 /// A fresh revision number (never 0, never repeated in a process).
@@ -330,7 +330,7 @@ pub fn hold_still(
     Ok(picked.len())
 }
 
-/// The springs (eq 2–3), stored in the order the force kernels want (see the `springs`
+/// The springs (eq 2–3), stored in the order the force kernels want (see the `spring_layout`
 /// module); [`Springs::iter`] gives them back. They hold the surface's [`Hinges`] too (none
 /// unless set), so that bending goes wherever the springs go, and the couplings that make
 /// their stretch springs a membrane (none unless set; see [`CouplingSpec`]).

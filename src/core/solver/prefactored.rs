@@ -59,7 +59,7 @@ use super::DampingModel;
 use super::contact::step::project;
 use super::implicit::{cancelling_spin, point_inertia};
 use super::parts::{ExternalForces, PointState};
-use super::stepper::{Model, Stepper};
+use super::stepper::{StepParts, Stepper};
 
 /// Marks a fixed point's row.
 const FIXED: u32 = u32::MAX;
@@ -108,7 +108,7 @@ impl Scratch {
     /// Whether a step of length `h` over `model` can be taken here: P is factorised for it,
     /// building it first where the key changed (`drag` is μ). Where P cannot be factorised
     /// the step is CG's, until the key changes.
-    fn ready(&mut self, model: Model<'_>, h: f64, drag: f32) -> bool {
+    fn ready(&mut self, model: StepParts<'_>, h: f64, drag: f32) -> bool {
         let key = Key {
             h: h.to_bits(),
             masses: model.masses.revision,
@@ -126,7 +126,7 @@ impl Scratch {
     }
 
     /// Builds and factorises P (see the module docs); `None` where Cholesky fails.
-    fn factorise(&mut self, model: Model<'_>, h: f64, drag: f64) -> Option<Llt<u32, f32>> {
+    fn factorise(&mut self, model: StepParts<'_>, h: f64, drag: f64) -> Option<Llt<u32, f32>> {
         let n = model.masses.len();
         self.row.clear();
         self.free.clear();
@@ -266,7 +266,7 @@ impl Stepper {
     pub(super) fn local_global_step(
         &mut self,
         points: &mut PointState,
-        model: Model<'_>,
+        model: StepParts<'_>,
         external: &ExternalForces,
         h: f32,
         iterations: u32,
@@ -371,7 +371,7 @@ impl Stepper {
         &self,
         state: &mut PointState,
         start: &PointState,
-        model: Model<'_>,
+        model: StepParts<'_>,
         external: &ExternalForces,
         h: f64,
     ) {
@@ -461,7 +461,7 @@ impl Scratch {
     /// more solve a step. Without it a stiff gas overshoots: κ = 1000 in a light shell at
     /// 30 Hz ran away on 173 of 179 steps. Writes g and u (per row) and returns c and the
     /// denominator; `None` without gas.
-    fn gas_term(&mut self, points: &PointState, model: Model<'_>) -> Option<(f64, f64)> {
+    fn gas_term(&mut self, points: &PointState, model: StepParts<'_>) -> Option<(f64, f64)> {
         let gas = model.pressure?;
         let mut all = std::mem::take(&mut self.gradient);
         let c = gas.linearised(points, &mut all);

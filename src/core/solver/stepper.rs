@@ -24,7 +24,7 @@ use super::{implicit, prefactored};
 
 /// The parts of a surface a step reads but does not change.
 #[derive(Debug, Clone, Copy)]
-pub struct Model<'a> {
+pub struct StepParts<'a> {
     /// Masses and pins.
     pub masses: &'a Masses,
     /// Springs.
@@ -38,7 +38,7 @@ pub struct Model<'a> {
     pub rest: Option<&'a [Vec3]>,
 }
 
-impl Model<'_> {
+impl StepParts<'_> {
     /// Revisions of the parts the stable step depends on.
     fn revisions(&self) -> [u64; 3] {
         [
@@ -192,7 +192,7 @@ impl Stepper {
     }
 
     /// The stable-step estimate for the model (cached until one of its parts changes).
-    pub fn stability(&mut self, model: Model<'_>) -> Stability {
+    pub fn stability(&mut self, model: StepParts<'_>) -> Stability {
         let revisions = model.revisions();
         match self.stability {
             Some((s, r)) if r == revisions => s,
@@ -206,7 +206,7 @@ impl Stepper {
 
     /// The stable-step estimate at `points`: [`Self::stability`] with a gas's stiffness at
     /// the current volume added ([`Pressure::stiffness_bound`]).
-    pub fn stability_at(&mut self, points: &PointState, model: Model<'_>) -> Stability {
+    pub fn stability_at(&mut self, points: &PointState, model: StepParts<'_>) -> Stability {
         let springs = self.stability(model);
         match model.pressure {
             Some(gas) => springs.with_stiffness(
@@ -217,7 +217,7 @@ impl Stepper {
         }
     }
 
-    fn check_sizes(&self, points: &PointState, model: Model<'_>) -> Result<(), SolverError> {
+    fn check_sizes(&self, points: &PointState, model: StepParts<'_>) -> Result<(), SolverError> {
         let n = points.len();
         for (what, found) in [("masses", model.len()), ("force buffers", self.fa.len())] {
             if found != n {
@@ -237,7 +237,7 @@ impl Stepper {
     pub fn accumulate_forces(
         &mut self,
         points: &PointState,
-        model: Model<'_>,
+        model: StepParts<'_>,
     ) -> Result<(), SolverError> {
         self.check_sizes(points, model)?;
         self.compute_internal(points, model);
@@ -252,7 +252,7 @@ impl Stepper {
         (self.forces_ready && i < self.fa.len()).then(|| self.fa.get(i) + self.fb.get(i))
     }
 
-    pub(super) fn compute_internal(&mut self, points: &PointState, model: Model<'_>) {
+    pub(super) fn compute_internal(&mut self, points: &PointState, model: StepParts<'_>) {
         let g = self.config.gravity;
         let mu = self.config.drag;
         let (v, m) = (&points.v, &model.masses.mass);
@@ -311,7 +311,7 @@ impl Stepper {
     fn plan(
         &mut self,
         points: &PointState,
-        model: Model<'_>,
+        model: StepParts<'_>,
         integrator: Integrator,
         dt: f32,
     ) -> Result<(u32, bool), SolverError> {
@@ -348,7 +348,7 @@ impl Stepper {
     pub fn advance(
         &mut self,
         points: &mut PointState,
-        model: Model<'_>,
+        model: StepParts<'_>,
         external: &ExternalForces,
         dt: f32,
     ) -> Result<StepReport, SolverError> {
@@ -442,7 +442,7 @@ impl Stepper {
 
     /// After the guard restored the state: the points stop there, or at rest
     /// ([`InstabilityResponse`]).
-    fn respond(&mut self, points: &mut PointState, model: Model<'_>) {
+    fn respond(&mut self, points: &mut PointState, model: StepParts<'_>) {
         let rest = model
             .rest
             .filter(|r| r.len() == points.len())
@@ -464,7 +464,7 @@ impl Stepper {
     fn take_step(
         &mut self,
         points: &mut PointState,
-        model: Model<'_>,
+        model: StepParts<'_>,
         external: &ExternalForces,
         dt: f32,
         integrator: Integrator,
@@ -569,7 +569,7 @@ impl Stepper {
     fn project_contacts(
         &mut self,
         points: &mut PointState,
-        model: Model<'_>,
+        model: StepParts<'_>,
         external: &ExternalForces,
         h: f32,
         insane: usize,
@@ -695,7 +695,7 @@ impl Stepper {
     }
 
     /// Kinetic, spring, gravitational and anchor energy of `points`.
-    pub fn energy(&self, points: &PointState, model: Model<'_>) -> Energy {
+    pub fn energy(&self, points: &PointState, model: StepParts<'_>) -> Energy {
         let mut e = Energy {
             spring: model.springs.energy(points),
             bending: model.springs.hinges.energy(points) + model.springs.curvatures.energy(points),
@@ -723,7 +723,7 @@ impl Stepper {
 }
 
 /// The stable-step estimate (see the module docs of `solver`).
-fn estimate_stability(config: &SolverConfig, model: Model<'_>) -> Stability {
+fn estimate_stability(config: &SolverConfig, model: StepParts<'_>) -> Stability {
     let n = model.len();
     let (masses, layout) = (model.masses, &model.springs.layout);
     let mut stiff = vec![0.0f64; n];

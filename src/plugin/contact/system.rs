@@ -18,7 +18,7 @@ use super::{ContactDiagnostics, SurfaceContact, SurfaceContacts};
 use crate::core::network::SpringNetwork;
 use crate::core::solver::contact::StepContact;
 use crate::plugin::components::{
-    SimulationPoints, StepOnce, SurfaceForces, SurfaceMasses, SurfaceNetwork, SurfaceSettings,
+    SimulationPoints, StepOnce, SurfaceForces, SurfaceMasses, SurfaceNetwork, SurfaceRunSettings,
     SurfaceSprings, SurfaceStatus, SurfaceStepper,
 };
 
@@ -35,7 +35,7 @@ pub struct ContactSurface {
     forces: &'static mut SurfaceForces,
     place: &'static GlobalTransform,
     status: &'static SurfaceStatus,
-    settings: &'static SurfaceSettings,
+    settings: &'static SurfaceRunSettings,
     step_once: Has<StepOnce>,
     contact: Option<Ref<'static, SurfaceContact>>,
     groups: Option<&'static CollisionGroups>,
@@ -247,7 +247,7 @@ pub(crate) fn record_step_contacts(
                 body.apply_impulse_at_point(-world, at, true);
             }
         }
-        stepper.bypass_change_detection().clear_contact_impulses();
+        stepper.bypass_change_detection().0.clear_contact_impulses();
         if impulse.is_finite() {
             report.impulse += impulse;
             report.total_impulse += impulse;

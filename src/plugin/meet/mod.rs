@@ -42,7 +42,7 @@ use crate::core::solver::contact::{
 };
 
 use super::components::{
-    SimulationPoints, StepOnce, SurfaceForces, SurfaceMasses, SurfaceNetwork, SurfaceSettings,
+    SimulationPoints, StepOnce, SurfaceForces, SurfaceMasses, SurfaceNetwork, SurfaceRunSettings,
     SurfaceSprings, SurfaceStatus, SurfaceStepper,
 };
 use super::simulate::running;
@@ -340,7 +340,7 @@ type MeetParts = (
     Option<&'static GlobalTransform>,
     (
         &'static SurfaceStatus,
-        &'static SurfaceSettings,
+        &'static SurfaceRunSettings,
         Has<StepOnce>,
     ),
 );

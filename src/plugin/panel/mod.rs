@@ -26,7 +26,7 @@ use bevy_egui::{EguiPlugin, EguiPrimaryContextPass};
 
 use super::PointSpringsSystems;
 use super::components::{
-    ModelQuery, SimulationPoints, SurfaceStatus, SurfaceStepper, SurfaceTimings,
+    SimulationPoints, StepPartsQuery, SurfaceStatus, SurfaceStepper, SurfaceTimings,
 };
 use super::model::ModelOutcome;
 use super::render::SpringGizmos;
@@ -133,7 +133,7 @@ fn record_history(
         &SimulationPoints,
         &SurfaceStepper,
         &SurfaceTimings,
-        ModelQuery,
+        StepPartsQuery,
     )>,
 ) {
     if history.surface != panel.selected {
@@ -148,7 +148,7 @@ fn record_history(
     if history.samples.back().is_some_and(|s| s.time >= now) {
         return; // time is paused: nothing new to plot
     }
-    let energy = stepper.energy(points, parts.model());
+    let energy = stepper.energy(points, parts.step_parts());
     history.samples.push_back(Sample {
         time: now,
         kinetic: energy.kinetic,

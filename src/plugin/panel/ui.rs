@@ -13,8 +13,8 @@ use crate::core::simplify::MIN_SIMULATION_POINTS;
 use crate::core::solver::{BendingModel, ImplicitSolver, Integrator, MaterialUnits, SubstepPolicy};
 use crate::plugin::components::{
     DeformableSurface, DenseSurface, PreparationProgress, SimulationPoints, StepOnce,
-    SurfaceInView, SurfaceMaterial, SurfaceNetwork, SurfaceSettings, SurfaceSleep, SurfaceSprings,
-    SurfaceStatus, SurfaceStepper, SurfaceTimings,
+    SurfaceInView, SurfaceMaterial, SurfaceNetwork, SurfaceRunSettings, SurfaceSleep,
+    SurfaceSprings, SurfaceStatus, SurfaceStepper, SurfaceTimings,
 };
 use crate::plugin::model::ModelMessage;
 use crate::plugin::prepare::{PrepareAgain, PrepareAgainFailed};
@@ -46,7 +46,7 @@ pub(super) struct PanelSurface {
     in_view: &'static SurfaceInView,
     material: &'static mut SurfaceMaterial,
     stepper: &'static mut SurfaceStepper,
-    settings: &'static mut SurfaceSettings,
+    settings: &'static mut SurfaceRunSettings,
     progress: Option<&'static PreparationProgress>,
     failed: Option<&'static PrepareAgainFailed>,
 }

@@ -7,7 +7,7 @@ use glam::{DMat3, DVec3};
 use super::{CgOutcome, ExternalForces, PointState, Scratch, System, iterate, outer};
 use crate::core::solver::SolverConfig;
 use crate::core::solver::contact::{StepBody, StepContact, step};
-use crate::core::solver::stepper::Model;
+use crate::core::solver::stepper::StepParts;
 
 /// Most solves one step makes to settle which contacts hold their points (a contact that
 /// would pull its point is let go; a point let go that passes its body is held again).
@@ -67,7 +67,11 @@ pub(super) fn broyden(c: DMat3, dx: DVec3, dy: DVec3) -> DMat3 {
 }
 
 impl<'a> Contacts<'a> {
-    pub(super) fn new(external: &'a ExternalForces, points: &PointState, model: Model<'_>) -> Self {
+    pub(super) fn new(
+        external: &'a ExternalForces,
+        points: &PointState,
+        model: StepParts<'_>,
+    ) -> Self {
         let contacts = &external.contacts[..];
         let kept = if contacts.is_empty() {
             Vec::new()

@@ -15,7 +15,7 @@
 
 use glam::{DVec3, Vec3};
 
-use super::super::springs::{COINCIDENT_DISTANCE, SpringLayout};
+use super::super::spring_layout::{COINCIDENT_DISTANCE, SpringLayout};
 use super::{PointState, Soa3};
 use crate::core::solver::SolverError;
 
