@@ -986,3 +986,56 @@ fn a_load_drops_a_bake_under_way() {
     assert!(apart < 0.05, "{apart} from the loaded shape");
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn a_reset_drops_a_bake_under_way_and_a_despawn_still_answers_it() {
+    let mut app = create_app(&assets_dir(), TICK);
+    // Large enough that its bake (the transfer refitted over 20 000 dense points) is still
+    // running when the tick that started it ends.
+    let sphere = app.world_mut().spawn(floating(20_000, 300)).id();
+    settle(&mut app, &[sphere]);
+    let network = |app: &App| {
+        app.world()
+            .get::<SurfaceNetwork>(sphere)
+            .unwrap()
+            .shared()
+            .clone()
+    };
+    let before = network(&app);
+    // A bake, then a reset in the same tick: the later request wins.
+    app.world_mut()
+        .write_message(ModelMessage::Bake { surface: sphere });
+    app.world_mut()
+        .write_message(ModelMessage::Reset { surface: sphere });
+    let all = outcomes_of(&mut app, 2);
+    let of = |bake: bool| {
+        all.iter()
+            .find(|o| matches!(o.request, ModelMessage::Bake { .. }) == bake)
+            .unwrap()
+            .result
+            .clone()
+    };
+    assert_eq!(of(false), Ok(()));
+    assert_eq!(of(true), Err(ModelError::Superseded(sphere)));
+    assert!(std::sync::Arc::ptr_eq(&before, &network(&app)));
+    assert!(
+        app.world()
+            .get::<bevy_point_springs::plugin::SurfaceBaked>(sphere)
+            .is_none()
+    );
+
+    // A bake under way when its surface is despawned: the request is answered all the same.
+    app.world_mut()
+        .write_message(ModelMessage::Bake { surface: sphere });
+    app.update();
+    assert!(
+        outcomes(&mut app).is_empty(),
+        "the bake finished in its own tick"
+    );
+    app.world_mut().despawn(sphere);
+    app.update();
+    let answered = outcomes(&mut app);
+    assert_eq!(answered.len(), 1, "{answered:?}");
+    assert_eq!(answered[0].request, ModelMessage::Bake { surface: sphere });
+    assert_eq!(answered[0].result, Err(ModelError::Despawned(sphere)));
+}

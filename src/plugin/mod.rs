@@ -203,6 +203,7 @@ impl Plugin for PointSpringsPlugin {
             .add_message::<SaveGameOutcome>()
             .add_message::<ModelMessage>()
             .add_message::<ModelOutcome>()
+            .add_observer(model::report_dropped_work)
             .init_resource::<GrabSettings>()
             .init_resource::<Grabs>()
             .configure_sets(

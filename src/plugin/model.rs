@@ -9,10 +9,10 @@
 //! copied) and runs on Bevy's async compute pool while the surface runs on; its outcome
 //! comes in a later tick. A finished bake puts the surface in the shape it had when the
 //! request was read, still, with that shape as its rest shape: the ticks in between are
-//! dropped. A bake whose surface was prepared again, or had a saved game loaded onto it,
-//! meanwhile is dropped ([`ModelError::Superseded`]), and one surface bakes once at a time
-//! ([`ModelError::Busy`]). A despawned surface's work is dropped with it, without an
-//! outcome. A reset sent while a bake runs is undone when the bake lands.
+//! dropped. A bake whose surface was prepared again, reset, or had a saved game loaded onto
+//! it meanwhile is dropped ([`ModelError::Superseded`]: the later request wins), and one
+//! surface bakes once at a time ([`ModelError::Busy`]). A despawned surface's work is
+//! dropped with it, and each request still gets its outcome ([`ModelError::Despawned`]).
 //!
 //! ```no_run
 //! use bevy::prelude::*;
@@ -105,10 +105,13 @@ pub enum ModelError {
     /// A bake of the surface is already under way.
     #[error("{0} is already being baked")]
     Busy(Entity),
-    /// The surface was prepared again, or had a saved game loaded onto it, while its bake
-    /// ran: the bake was dropped.
+    /// The surface was prepared again, reset, or had a saved game loaded onto it, while its
+    /// bake ran: the bake was dropped.
     #[error("{0} changed while it was being baked: the bake was dropped")]
     Superseded(Entity),
+    /// The surface was despawned while its bake or export ran: the work was dropped.
+    #[error("{0} was despawned while its bake or export ran: the work was dropped")]
+    Despawned(Entity),
     /// No thread pool for the work could be built.
     #[error("no thread pool: {0}")]
     ThreadPool(Arc<rayon::ThreadPoolBuildError>),
@@ -131,7 +134,8 @@ impl PartialEq for ModelError {
             (Self::NotASurface(a), Self::NotASurface(b))
             | (Self::NotReady(a), Self::NotReady(b))
             | (Self::Busy(a), Self::Busy(b))
-            | (Self::Superseded(a), Self::Superseded(b)) => a == b,
+            | (Self::Superseded(a), Self::Superseded(b))
+            | (Self::Despawned(a), Self::Despawned(b)) => a == b,
             (Self::ThreadPool(a), Self::ThreadPool(b)) => Arc::ptr_eq(a, b),
             (Self::Bake(a), Self::Bake(b)) => a == b,
             (Self::Export(a), Self::Export(b)) => Arc::ptr_eq(a, b),
@@ -181,6 +185,13 @@ impl ModelWork {
     fn baking(&self) -> bool {
         self.0.iter().any(|r| r.network.is_some())
     }
+
+    /// Marks the bakes under way superseded: they were taken from a state since replaced.
+    fn supersede_bakes(&mut self) {
+        for running in self.0.iter_mut().filter(|r| r.network.is_some()) {
+            running.superseded = true;
+        }
+    }
 }
 
 /// A saved game loaded onto `surface` drops the bakes under way on it
@@ -190,9 +201,7 @@ pub(crate) fn supersede_bakes(commands: &mut Commands, surface: Entity) {
         .entity(surface)
         .queue(|mut entity: EntityWorldMut| {
             if let Some(mut work) = entity.get_mut::<ModelWork>() {
-                for running in work.0.iter_mut().filter(|r| r.network.is_some()) {
-                    running.superseded = true;
-                }
+                work.supersede_bakes();
             }
         });
 }
@@ -218,7 +227,7 @@ pub(crate) fn apply_model_requests(
         let start = Instant::now();
         let surface = request.surface();
         let started = match PreparationPool::get_or_build(&mut commands, pool.as_deref()) {
-            Ok(pool) => carry_out(request, &mut surfaces, &pool, fresh.get(&surface)),
+            Ok(pool) => carry_out(request, &mut surfaces, &pool, fresh.get_mut(&surface)),
             Err(e) => Err(ModelError::ThreadPool(Arc::new(e))),
         };
         match started {
@@ -255,7 +264,7 @@ fn carry_out(
     request: &ModelMessage,
     surfaces: &mut Query<ModelParts>,
     pool: &PreparationPool,
-    fresh: Option<&ModelWork>,
+    fresh: Option<&mut ModelWork>,
 ) -> Result<Option<Running>, ModelError> {
     let surface = request.surface();
     let Ok((
@@ -281,7 +290,7 @@ fn carry_out(
     let pool = pool.0.clone();
     match request {
         ModelMessage::Bake { .. } => {
-            if work.is_some_and(|w| w.baking()) || fresh.is_some_and(ModelWork::baking) {
+            if work.is_some_and(|w| w.baking()) || fresh.is_some_and(|w| w.baking()) {
                 return Err(ModelError::Busy(surface));
             }
             let job = BakeJob::new(
@@ -323,6 +332,14 @@ fn carry_out(
         }
         ModelMessage::Reset { .. } => {
             reset(&network, &mut points, &mut springs).map_err(ModelError::Reset)?;
+            // A bake under way was taken from the shape the reset discards: the later
+            // request wins.
+            if let Some(mut work) = work {
+                work.supersede_bakes();
+            }
+            if let Some(work) = fresh {
+                work.supersede_bakes();
+            }
             if let Some(mut timeline) = timeline {
                 timeline.restart(&mut anchors);
             }
@@ -437,6 +454,23 @@ pub(crate) fn finish_model_work(
         if let Ok(mut timings) = timings.get_mut(entity) {
             timings.model_ms += ms_since(start);
         }
+    }
+}
+
+/// A surface despawned with bakes or exports under way: each request still gets its
+/// outcome, [`ModelError::Despawned`]. (Work that finished took its entries out first.)
+pub(crate) fn report_dropped_work(
+    removed: On<Remove, ModelWork>,
+    works: Query<&ModelWork>,
+    mut outcomes: MessageWriter<ModelOutcome>,
+) {
+    let surface = removed.entity;
+    let Ok(work) = works.get(surface) else {
+        return;
+    };
+    for running in &work.0 {
+        let error = ModelError::Despawned(surface);
+        report(&mut outcomes, running.request.clone(), Err(error));
     }
 }
 
