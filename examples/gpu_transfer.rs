@@ -38,7 +38,6 @@ use bevy_point_springs::core::simplify::SimplifyConfig;
 use bevy_point_springs::plugin::panel::PointSpringsPanelPlugin;
 use bevy_point_springs::plugin::pick::SurfacePickingPlugin;
 use bevy_point_springs::plugin::render::{SurfelMaterial, SurfelSlot, TransferDevice};
-use bevy_point_springs::plugin::simulate::follow;
 use bevy_point_springs::plugin::{SurfaceNetwork, SurfaceTimings, TransferTiming};
 use bevy_point_springs::prelude::*;
 
@@ -245,7 +244,7 @@ fn check(app: &mut App, surface: Entity) {
     let scale = world.get::<SurfelRender>(surface).unwrap().radius_scale;
     let rest = dense.transfer();
     let shape = SurfelShape::at_rest(rest.rest_positions(), rest.rest_normals(), scale);
-    follow(&mut dense, &points).unwrap();
+    dense.follow(&points).unwrap();
     let mut cpu = Vec::new();
     pack_surfels(dense.positions(), dense.normals(), &shape, &mut cpu);
     let at = first * SURFEL_BYTES;

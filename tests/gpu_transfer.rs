@@ -32,7 +32,6 @@ use bevy_point_springs::plugin::render::SurfelRenderPlugin;
 use bevy_point_springs::plugin::render::{
     SurfelMaterial, SurfelRender, SurfelSlot, TransferDevice,
 };
-use bevy_point_springs::plugin::simulate::follow;
 use bevy_point_springs::prelude::*;
 
 /// A hang guard, not a speed check.
@@ -166,7 +165,7 @@ fn check_against_cpu(app: &App, surfaces: &[Entity], gpu: &[u8]) {
             rest.rest_normals(),
             render.radius_scale,
         );
-        follow(&mut dense, &points).unwrap();
+        dense.follow(&points).unwrap();
         let mut cpu = Vec::new();
         pack_surfels(dense.positions(), dense.normals(), &shape, &mut cpu);
         let at = first * SURFEL_BYTES;

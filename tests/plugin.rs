@@ -525,7 +525,7 @@ fn an_interpolated_surface_is_drawn_between_its_last_two_ticks() {
         let at = |positions: &[Vec3]| -> Vec<Vec3> {
             let mut cloud = DenseCloud::clone(dense);
             let state = bevy_point_springs::core::solver::PointState::new(positions).unwrap();
-            bevy_point_springs::plugin::simulate::follow(&mut cloud, &state).unwrap();
+            cloud.follow(&state).unwrap();
             cloud.positions().to_vec()
         };
         let (from, to) = (at(&previous), at(&points.positions()));

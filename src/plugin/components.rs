@@ -502,8 +502,8 @@ pub struct DenseSurface(pub(crate) DenseCloud);
 /// `SurfelRender::device`): the simulation points to draw this frame, which the transfer
 /// systems hand over instead of transferring on the CPU. [`DenseSurface`] then keeps the
 /// dense surface as the CPU last computed it; the plugin brings it up to date where it
-/// reads it (saving a game, picking, export) with
-/// [`follow`](super::simulate::follow).
+/// reads it (saving a game, picking, export), as
+/// [`DenseCloud::follow`](crate::core::pipeline::DenseCloud::follow) does.
 #[derive(Component, Debug, Clone, Default)]
 pub struct GpuTransferInput {
     /// The simulation points' positions to draw (the surface's own coordinates; w = 0).
@@ -540,9 +540,10 @@ impl GpuTransferInput {
     }
 }
 
-/// A scene's pulls and pokes on their schedule (surfaces spawned from scenes).
-#[derive(Component, Debug, Clone, Deref, DerefMut)]
-pub struct SceneTimeline(pub Timeline);
+/// A scene's pulls and pokes on their schedule (surfaces spawned from scenes). Read it
+/// (`Deref`); the plugin drives it, and `ModelMessage::Reset` starts it again.
+#[derive(Component, Debug, Clone, Deref)]
+pub struct SceneTimeline(pub(crate) Timeline);
 
 /// The read-only parts of a surface a step needs, as one query item.
 #[derive(QueryData)]

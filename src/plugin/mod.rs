@@ -5,7 +5,7 @@
 //! when it is ready or why it failed with the events of [`lifecycle`]), then every tick of
 //! its schedule (by default
 //! [`FixedUpdate`]) runs the chained sets of [`PointSpringsSystems`]:
-//! `Forces → Integrate → Transfer` ([`simulate`]). Each surface is one entity whose
+//! `Forces → Integrate → Transfer` (`simulate.rs`). Each surface is one entity whose
 //! components hold whole arrays ([`components`]); drawing comes with the `render` feature.
 //!
 //! ```
@@ -51,7 +51,7 @@ pub mod prepare;
 #[cfg(feature = "render")]
 pub mod render;
 pub mod save;
-pub mod simulate;
+pub(crate) mod simulate;
 pub mod sleep;
 #[cfg(feature = "render")]
 pub mod view;

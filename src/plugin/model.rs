@@ -341,7 +341,7 @@ fn carry_out(
                 work.supersede_bakes();
             }
             if let Some(mut timeline) = timeline {
-                timeline.restart(&mut anchors);
+                timeline.0.restart(&mut anchors);
             }
             // The rest shape need not be at rest under gravity or pins: awake, it settles.
             *sleep = SurfaceSleep {

@@ -39,7 +39,7 @@ use super::lifecycle::SurfaceError;
 
 /// Dense surfaces up to this many points follow the simulation on the calling thread
 /// (handing the work to other threads costs more than it saves).
-pub const PARALLEL_TRANSFER_POINTS: usize = 16_384;
+pub(crate) const PARALLEL_TRANSFER_POINTS: usize = 16_384;
 
 /// Whether a surface steps this tick: ready, and not paused unless asked for one step
 /// ([`StepOnce`]).
@@ -111,7 +111,7 @@ pub(crate) fn drive_timelines(
         if !running(&status, settings, once) || timeline.finished() {
             continue;
         }
-        if let Err(e) = timeline.advance(&mut anchors, &network.positions) {
+        if let Err(e) = timeline.0.advance(&mut anchors, &network.positions) {
             fail(&mut status, solver_failed("scene timeline", e));
         }
     }
@@ -461,9 +461,10 @@ pub(crate) fn remember_previous_tick(
 }
 
 /// Carries the simulation points' state to the dense points, on Bevy's compute pool when
-/// the surface is large. Returns whether anything was computed (false: the points did not
+/// the surface is large (the same rows, to the bit, as the core's `DenseCloud::follow` on
+/// rayon). Returns whether anything was computed (false: the points did not
 /// move since the last frame).
-pub fn follow(dense: &mut DenseCloud, points: &PointState) -> Result<bool, TransferError> {
+pub(crate) fn follow(dense: &mut DenseCloud, points: &PointState) -> Result<bool, TransferError> {
     if !dense.begin_frame(points)? {
         return Ok(false);
     }
