@@ -2,7 +2,6 @@
 //! `MinimalPlugins` + `TransformPlugin` + `PointSpringsPlugin`, one `update()` one tick.
 #![cfg(feature = "plugin")]
 
-use bevy::ecs::system::RunSystemOnce;
 use bevy::prelude::*;
 use bevy_point_springs::core::cloud::shapes;
 use bevy_point_springs::core::network::surface_intersections;
@@ -15,7 +14,7 @@ use bevy_point_springs::prelude::*;
 #[allow(dead_code)] // the helpers of other test files
 #[path = "support/plugin_app.rs"]
 mod plugin_app;
-use plugin_app::{TICK, assets_dir, create_app_with, settle};
+use plugin_app::{TICK, assets_dir, create_app_with, hold, settle};
 
 fn create_app() -> App {
     create_app_with(&assets_dir(), TICK, |app| {
@@ -182,19 +181,7 @@ fn a_hat_dropped_on_a_head_rests_on_it_outside() {
             app.world().get::<SurfaceStatus>(hat)
         );
     }
-    {
-        let rest = app
-            .world()
-            .get::<SurfaceNetwork>(head)
-            .unwrap()
-            .shared()
-            .clone();
-        app.world_mut()
-            .run_system_once(move |mut pins: SurfacePins| {
-                pins.pin_where(head, |i| rest.positions[i].y < 0.0).unwrap();
-            })
-            .unwrap();
-    }
+    hold(&mut app, head, |p| p.y < 0.0);
     let per_second = (1.0 / TICK.as_secs_f32()).round() as usize;
     let mut worst_inside = 0.0_f32;
     let start = centroid(&world_points(&app, hat));
@@ -258,21 +245,6 @@ fn let_fall(app: &mut App, e: Entity, gravity: Vec3) {
     let mut config = *stepper.config();
     config.gravity = gravity;
     stepper.set_config(config).unwrap();
-}
-
-/// Holds still the simulation points of `e` whose rest position `held` accepts.
-fn hold(app: &mut App, e: Entity, held: impl Fn(Vec3) -> bool + Send + Sync + 'static) -> usize {
-    let rest = app
-        .world()
-        .get::<SurfaceNetwork>(e)
-        .unwrap()
-        .shared()
-        .clone();
-    app.world_mut()
-        .run_system_once(move |mut pins: SurfacePins| {
-            pins.pin_where(e, |i| held(rest.positions[i])).unwrap()
-        })
-        .unwrap()
 }
 
 /// A square of cloth `side` m wide with `sim` simulation points (its rest in the XY plane;

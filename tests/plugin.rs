@@ -294,12 +294,7 @@ fn dense_points_by_pins_a_game_sets_hold_exactly() {
         .unwrap()
         .positions
         .clone();
-    let top = rest.clone();
-    app.world_mut()
-        .run_system_once(move |mut pins: SurfacePins| {
-            pins.pin_where(e, |i| top[i].y > 0.7).unwrap();
-        })
-        .unwrap();
+    hold(&mut app, e, |p| p.y > 0.7);
     app.update();
     let held_at = app
         .world()

@@ -1,7 +1,6 @@
 //! The plugin's modelling tools, headless (issue 17): plastic materials, baking and export
 //! through `ModelMessage`, and sleeping surfaces.
 
-use bevy::ecs::system::RunSystemOnce;
 use bevy::prelude::*;
 use bevy_point_springs::core::cloud::io::read_cloud;
 use bevy_point_springs::core::pipeline::DenseCloud;
@@ -685,17 +684,7 @@ fn a_saved_game_goes_on_bit_for_bit_in_a_fresh_app() {
     // baked, grabbed again (held while saving).
     let mut app = create_app(&assets_dir(), TICK);
     let sphere = named_gas_sphere(&mut app);
-    let rest = app
-        .world()
-        .get::<SurfaceNetwork>(sphere)
-        .unwrap()
-        .positions
-        .clone();
-    app.world_mut()
-        .run_system_once(move |mut pins: SurfacePins| {
-            pins.pin_where(sphere, |i| rest[i].y < -0.8).unwrap();
-        })
-        .unwrap();
+    hold(&mut app, sphere, |p| p.y < -0.8);
     let mut material = app.world_mut().get_mut::<SurfaceMaterial>(sphere).unwrap();
     material.yield_strain = 0.05;
     material.creep_rate = 5.0;

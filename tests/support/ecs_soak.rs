@@ -151,14 +151,15 @@ fn troubled(app: &App, e: Entity) -> u64 {
 }
 
 /// Bakes and resets that failed since the last call (a request for a surface despawned or
-/// not ready by then is refused by design, and not counted), and surfaces whose preparation
+/// not ready by then, or despawned while it ran, is refused by design, and not counted), and surfaces whose preparation
 /// again failed.
 fn failed_requests(app: &mut App) -> u64 {
     let world = app.world_mut();
     let models = world
         .resource_mut::<Messages<ModelOutcome>>()
         .drain()
-        // Refusals (not ready, already baking, prepared again meanwhile) are not failures.
+        // Refusals (not ready, already baking, prepared again or reset meanwhile, despawned
+        // meanwhile) are not failures.
         .filter(|o| {
             o.result.as_ref().is_err_and(|e| {
                 !matches!(
@@ -167,6 +168,7 @@ fn failed_requests(app: &mut App) -> u64 {
                         | ModelError::NotReady(_)
                         | ModelError::Busy(_)
                         | ModelError::Superseded(_)
+                        | ModelError::Despawned(_)
                 )
             })
         })

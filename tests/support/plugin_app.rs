@@ -7,11 +7,13 @@
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
+use bevy::ecs::system::RunSystemOnce;
 use bevy::prelude::*;
 use bevy::time::TimeUpdateStrategy;
 use bevy_point_springs::core::cloud::shapes;
 use bevy_point_springs::core::pipeline::SurfaceConfig;
 use bevy_point_springs::core::simplify::SimplifyConfig;
+use bevy_point_springs::plugin::SurfaceNetwork;
 use bevy_point_springs::prelude::*;
 
 /// Fixed tick of the tests that do not follow a scene.
@@ -168,5 +170,25 @@ pub fn nearest_point(app: &App, surface: Entity, p: Vec3) -> (usize, Vec3) {
         .iter_positions()
         .enumerate()
         .min_by(|a, b| a.1.distance(p).total_cmp(&b.1.distance(p)))
+        .unwrap()
+}
+
+/// Holds still (pins where they are, with `SurfacePins`, as a game would) the simulation
+/// points of `e` whose rest position `held` accepts; returns how many.
+pub fn hold(
+    app: &mut App,
+    e: Entity,
+    held: impl Fn(Vec3) -> bool + Send + Sync + 'static,
+) -> usize {
+    let rest = app
+        .world()
+        .get::<SurfaceNetwork>(e)
+        .unwrap()
+        .shared()
+        .clone();
+    app.world_mut()
+        .run_system_once(move |mut pins: SurfacePins| {
+            pins.pin_where(e, |i| held(rest.positions[i])).unwrap()
+        })
         .unwrap()
 }
