@@ -1111,6 +1111,19 @@ fn a_pinned_point_stays_put_and_falls_again_when_freed() {
         ),
         "{refused:?}"
     );
+    // An entity that is no surface, and a rule that picks nothing.
+    let nowhere = app.world_mut().spawn_empty().id();
+    let (refused, none) = app
+        .world_mut()
+        .run_system_once(move |mut pins: SurfacePins| {
+            (
+                pins.pin_where(nowhere, |_| true),
+                pins.pin_where(sphere, |_| false),
+            )
+        })
+        .unwrap();
+    assert_eq!(refused, Err(WorldSurfaceError::NotASurface(nowhere)));
+    assert_eq!(none, Ok(0));
 }
 
 /// Issue 37: pins declared before the first tick. An observer of `SurfaceReady` runs as

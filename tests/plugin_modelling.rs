@@ -358,13 +358,7 @@ fn a_status_set_back_to_pending_prepares_nothing_and_the_surface_runs_on() {
     };
     let sphere = app.world_mut().spawn((floating(1500, 100), awake)).id();
     settle(&mut app, &[sphere]);
-    let network = |app: &App| {
-        app.world()
-            .get::<SurfaceNetwork>(sphere)
-            .unwrap()
-            .shared()
-            .clone()
-    };
+    let network = |app: &App| network_of(app, sphere);
     let steps = |app: &App| app.world().get::<SurfaceWork>(sphere).unwrap().steps;
     let before = network(&app);
     *app.world_mut().get_mut::<SurfaceStatus>(sphere).unwrap() = SurfaceStatus::Pending;
@@ -983,13 +977,7 @@ fn a_reset_drops_a_bake_under_way_and_a_despawn_still_answers_it() {
     // running when the tick that started it ends.
     let sphere = app.world_mut().spawn(floating(20_000, 300)).id();
     settle(&mut app, &[sphere]);
-    let network = |app: &App| {
-        app.world()
-            .get::<SurfaceNetwork>(sphere)
-            .unwrap()
-            .shared()
-            .clone()
-    };
+    let network = |app: &App| network_of(app, sphere);
     let before = network(&app);
     // A bake, then a reset in the same tick: the later request wins.
     app.world_mut()

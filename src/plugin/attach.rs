@@ -703,10 +703,7 @@ pub fn hold_attachments(
             // awake (a sleeping surface would stop pulling its body).
             if moved || motion.is_some() {
                 if sleep.asleep {
-                    *sleep = SurfaceSleep {
-                        acted: true,
-                        ..SurfaceSleep::default()
-                    };
+                    sleep.wake();
                 } else {
                     sleep.acted = true;
                 }

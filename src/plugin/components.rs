@@ -312,6 +312,16 @@ pub struct SurfaceSleep {
     pub(crate) acted: bool,
 }
 
+impl SurfaceSleep {
+    /// Wakes the surface: something acted on it this tick, and its stillness starts again.
+    pub(crate) fn wake(&mut self) {
+        *self = Self {
+            acted: true,
+            ..Self::default()
+        };
+    }
+}
+
 /// The work a surface's ticks have done so far, counted (not timed): what sleeping saves.
 #[derive(Component, Debug, Clone, Copy, PartialEq, Eq, Default, Reflect)]
 #[reflect(Component, Debug, Default)]

@@ -344,10 +344,7 @@ fn carry_out(
                 timeline.0.restart(&mut anchors);
             }
             // The rest shape need not be at rest under gravity or pins: awake, it settles.
-            *sleep = SurfaceSleep {
-                acted: true,
-                ..SurfaceSleep::default()
-            };
+            sleep.wake();
             Ok(None)
         }
     }

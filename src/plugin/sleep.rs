@@ -33,10 +33,7 @@ pub(crate) fn wake_surfaces(mut surfaces: Query<WakeParts>) {
             || step_once
             || !forces.is_zero();
         if acted {
-            *sleep = SurfaceSleep {
-                acted: true,
-                ..SurfaceSleep::default()
-            };
+            sleep.wake();
         }
     }
 }

@@ -28,7 +28,7 @@ use bevy::prelude::*;
 use super::components::{
     DenseSurface, SimulationPoints, SurfaceForces, SurfaceMasses, SurfaceSleep, SurfaceStepper,
 };
-use crate::core::solver::hold_still;
+use crate::core::solver::{STANDARD_GRAVITY, hold_still};
 
 /// Why a [`WorldSurfaces`] call did nothing.
 #[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
@@ -263,8 +263,9 @@ impl SurfacePins<'_, '_> {
         self.pin_where(surface, |j| near[j])
     }
 
-    /// Pins, and stops, every simulation point of `surface` that `held` picks (by index;
-    /// the rest positions are [`SurfaceNetwork`](super::SurfaceNetwork)'s). Returns how many.
+    /// Pins, and stops, every simulation point of `surface` that `held` picks by index (to
+    /// pick by rest position, read them from [`SurfaceNetwork`](super::SurfaceNetwork)).
+    /// Returns how many.
     pub fn pin_where(
         &mut self,
         surface: Entity,
@@ -299,9 +300,9 @@ impl SurfacePins<'_, '_> {
 pub struct WorldGravity(pub Vec3);
 
 impl Default for WorldGravity {
-    /// Earth's, along −Y.
+    /// Earth's, along −Y ([`STANDARD_GRAVITY`]).
     fn default() -> Self {
-        Self(Vec3::NEG_Y * 9.81)
+        Self(STANDARD_GRAVITY)
     }
 }
 
@@ -322,12 +323,7 @@ pub(crate) fn apply_world_gravity(
             continue;
         }
         match stepper.0.set_gravity(local) {
-            Ok(()) => {
-                *sleep = SurfaceSleep {
-                    acted: true,
-                    ..SurfaceSleep::default()
-                };
-            }
+            Ok(()) => sleep.wake(),
             Err(e) => warn!("point-springs surface {entity}: world gravity not applied: {e}"),
         }
     }

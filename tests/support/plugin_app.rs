@@ -5,12 +5,14 @@
 //! `tests/` as tests of their own.
 
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use bevy::ecs::system::RunSystemOnce;
 use bevy::prelude::*;
 use bevy::time::TimeUpdateStrategy;
 use bevy_point_springs::core::cloud::shapes;
+use bevy_point_springs::core::network::SpringNetwork;
 use bevy_point_springs::core::pipeline::SurfaceConfig;
 use bevy_point_springs::core::simplify::SimplifyConfig;
 use bevy_point_springs::plugin::SurfaceNetwork;
@@ -180,15 +182,19 @@ pub fn hold(
     e: Entity,
     held: impl Fn(Vec3) -> bool + Send + Sync + 'static,
 ) -> usize {
-    let rest = app
-        .world()
-        .get::<SurfaceNetwork>(e)
-        .unwrap()
-        .shared()
-        .clone();
+    let rest = network_of(app, e);
     app.world_mut()
         .run_system_once(move |mut pins: SurfacePins| {
             pins.pin_where(e, |i| held(rest.positions[i])).unwrap()
         })
         .unwrap()
+}
+
+/// `e`'s spring network at rest (its `Arc`: the same one until `e` is prepared again or baked).
+pub fn network_of(app: &App, e: Entity) -> Arc<SpringNetwork> {
+    app.world()
+        .get::<SurfaceNetwork>(e)
+        .unwrap()
+        .shared()
+        .clone()
 }
