@@ -1,7 +1,7 @@
 //! Rigid bodies and deformable surfaces touching, and surfaces touching each other and
 //! themselves: the hat dropped on a sphere on a floor, a sheet dropped on its edge that
-//! folds on itself, balls dropped on the hat every second and a half, and the mouse to poke
-//! and drag.
+//! folds on itself, a 1 kg and a 5 kg crate dropped on a cloth lying on the floor, balls
+//! dropped on the hat every second and a half, and the mouse to poke and drag.
 //!
 //! ```sh
 //! cargo run --release --features egui,rapier --example playground
@@ -13,8 +13,10 @@
 //! dropped onto it from a metre above and rests on it like a cap on a head: both carry
 //! [`SurfaceMeeting`], so their points push each other apart. Beside them a 1.4 m sheet
 //! (400 simulation points), dropped standing on its edge, buckles and folds on itself; its
-//! `SurfaceMeeting` keeps the folds apart. All three are [`DeformableSurface`]s; the floor
-//! and the balls are bevy_rapier3d bodies.
+//! `SurfaceMeeting` keeps the folds apart. In front, a 1.2 m cloth (350 simulation points)
+//! lies on the floor; half a second in, two crates fall on it from a metre up and come to
+//! rest on it. All four are [`DeformableSurface`]s; the floor, the crates and the balls
+//! are bevy_rapier3d bodies.
 //! [`SurfaceContactPlugin`] makes every simulation point a small sphere that rapier's
 //! colliders push, and pushes them back. Left-drag pokes and pulls a surface, right-drag
 //! orbits, the wheel zooms, G shows the simulation points and springs, Space pauses. Built
@@ -58,6 +60,19 @@ const HAT_DROP: f32 = 1.0;
 /// Air drag on the hat (per second), which steadies it as it lands.
 const HAT_DRAG: f32 = 1.0;
 
+/// The cloth lying on the floor: its side (m) and where its middle lies.
+const CLOTH_SIDE: f32 = 1.2;
+const CLOTH_AT: Vec3 = Vec3::new(1.9, 0.04, 0.9);
+
+/// The crates: their side (m), when they fall (ticks) and, for each, its mass (kg) and
+/// where it starts.
+const CRATE_SIDE: f32 = 0.2;
+const CRATE_TICK: u32 = 30;
+const CRATES: [(f32, Vec3); 2] = [
+    (1.0, Vec3::new(1.6, 1.2, 0.8)),
+    (5.0, Vec3::new(2.15, 1.2, 1.0)),
+];
+
 /// The sheet: its side (m), where its middle starts (standing on its edge, 0.9 m above
 /// the floor, beside the sphere), how far it leans, and its flexural rigidity (N·m): soft
 /// enough to fold on itself where it lands (`tests/contact.rs` drops the same sheet).
@@ -77,7 +92,7 @@ fn main() -> AppExit {
             RapierPhysicsPlugin::<NoUserData>::default().in_fixed_schedule(),
         ))
         .add_systems(Startup, setup)
-        .add_systems(FixedUpdate, drop_balls)
+        .add_systems(FixedUpdate, (drop_balls, drop_crates))
         .run()
 }
 
@@ -132,13 +147,12 @@ fn setup(
         SurfelRender::default(),
         Transform::from_translation(SPHERE_AT),
     ));
-    // The hat turned over, rim down; its gravity is in its own coordinates, so it turns too.
+    // The hat turned over, rim down (gravity is the world's, however a surface is turned).
     let turn = Quat::from_rotation_x(std::f32::consts::PI);
     let hat = SurfaceConfig {
         simplify: SimplifyConfig::target(300),
         solver: SolverConfig {
             drag: HAT_DRAG,
-            gravity: turn.inverse() * solver.gravity,
             ..solver
         },
         ..default()
@@ -169,7 +183,6 @@ fn setup(
         },
         solver: SolverConfig {
             drag: 0.2,
-            gravity: lean.inverse() * solver.gravity,
             ..solver
         },
         ..default()
@@ -183,6 +196,23 @@ fn setup(
             ..default()
         },
         Transform::from_translation(SHEET_AT).with_rotation(lean),
+    ));
+    // The cloth lying on the floor (its cloud's XY plane turned onto it), at the default
+    // material, meeting itself.
+    let cloth = SurfaceConfig {
+        simplify: SimplifyConfig::target(350),
+        ..default()
+    };
+    commands.spawn((
+        Name::new("cloth"),
+        DeformableSurface::cloud(shapes::square_sheet(CLOTH_SIDE, 0.02 * CLOTH_SIDE), cloth),
+        SurfaceMeeting::default(),
+        SurfelRender {
+            color: Color::srgb(0.8, 0.7, 0.35),
+            ..default()
+        },
+        Transform::from_translation(CLOTH_AT)
+            .with_rotation(Quat::from_rotation_x(-std::f32::consts::FRAC_PI_2)),
     ));
     // The floor: a rapier collider and its slab.
     commands.spawn((
@@ -204,6 +234,41 @@ fn setup(
         }),
     });
     spawn_camera_and_light(&mut commands, Vec3::new(0.0, 0.8, 0.0), 6.0, 0.0, 0.6);
+}
+
+/// [`CRATE_TICK`] ticks after the surfaces are ready, the crates.
+fn drop_crates(
+    mut commands: Commands,
+    surfaces: Query<&SurfaceStatus>,
+    mut meshes: ResMut<Assets<Mesh>>,
+    mut materials: ResMut<Assets<StandardMaterial>>,
+    mut tick: Local<u32>,
+) {
+    if surfaces.is_empty() || !surfaces.iter().all(SurfaceStatus::is_ready) {
+        return;
+    }
+    *tick += 1;
+    if *tick != CRATE_TICK {
+        return;
+    }
+    let half = 0.5 * CRATE_SIDE;
+    let mesh = meshes.add(Cuboid::new(CRATE_SIDE, CRATE_SIDE, CRATE_SIDE));
+    let material = materials.add(StandardMaterial {
+        base_color: Color::srgb(0.6, 0.4, 0.2),
+        perceptual_roughness: 0.8,
+        ..default()
+    });
+    for (k, (mass, at)) in CRATES.into_iter().enumerate() {
+        commands.spawn((
+            Name::new(format!("crate {k}")),
+            RigidBody::Dynamic,
+            Collider::cuboid(half, half, half),
+            ColliderMassProperties::Mass(mass),
+            Mesh3d(mesh.clone()),
+            MeshMaterial3d(material.clone()),
+            Transform::from_translation(at).with_rotation(Quat::from_rotation_y(0.3 * k as f32)),
+        ));
+    }
 }
 
 /// Every [`BALL_INTERVAL`] ticks while the surfaces run, a ball over the hat on the sphere,

@@ -71,7 +71,7 @@ pub mod prelude {
     // A surface's points, forces and drawn surface, in world space too.
     #[cfg(feature = "plugin")]
     pub use crate::plugin::{
-        DenseSurface, SimulationPoints, SurfaceForces, SurfacePins, WorldGravity, WorldSurfaces,
+        DenseSurface, SimulationPoints, SurfaceForces, SurfaceGravity, SurfacePins, WorldSurfaces,
     };
     // The plugins, and where a game's systems go.
     #[cfg(feature = "plugin")]

@@ -684,9 +684,8 @@ fn a_ball_resting_on_the_playground_sphere_is_still_after_two_seconds() {
 
 /// How a dropped sheet crossed itself ([`surface_intersections`]) and where it lay.
 struct Dropped {
-    /// The most crossings at any tick, the ticks with any, and those after the last tick.
+    /// The most crossings at any tick, and those after the last tick.
     worst: usize,
-    crossed_ticks: usize,
     at_the_end: usize,
     /// The most of its points touching itself at any tick.
     touching: usize,
@@ -716,12 +715,11 @@ fn drop_sheet_on_the_floor(self_contact: bool) -> Dropped {
         solver: SolverConfig {
             integrator: Integrator::ImplicitEuler,
             drag: 0.2,
-            gravity: Vec3::ZERO,
             ..default()
         },
         ..default()
     };
-    // Standing: the cloud's rest is in the XY plane, its gravity along its own −Y.
+    // Standing: the cloud's rest is in the XY plane; gravity is the world's −Y.
     let turn = Quat::from_rotation_x(0.05);
     let sheet = app
         .world_mut()
@@ -739,10 +737,6 @@ fn drop_sheet_on_the_floor(self_contact: bool) -> Dropped {
         Transform::from_xyz(0.0, -0.1, 0.0),
     ));
     settle(&mut app, sheet);
-    let mut stepper = app.world_mut().get_mut::<SurfaceStepper>(sheet).unwrap();
-    let mut config = *stepper.config();
-    config.gravity = turn.inverse() * Vec3::new(0.0, -9.81, 0.0);
-    stepper.set_config(config).unwrap();
     let (mut worst, mut touching, mut crossed_ticks) = (0, 0, 0);
     let mut last = 0;
     for _ in 0..240 {
@@ -769,7 +763,6 @@ fn drop_sheet_on_the_floor(self_contact: bool) -> Dropped {
     );
     Dropped {
         worst,
-        crossed_ticks,
         at_the_end: last,
         touching,
         low,
@@ -792,25 +785,14 @@ fn self_crossings(app: &App, e: Entity) -> usize {
 
 #[test]
 fn a_sheet_dropped_on_the_floor_folds_without_crossing_itself() {
-    // Issue 35: the sheet lands, folds on itself and lies on the floor untangled. Measured
-    // 2026-12-05: without self-contact it crosses itself at up to 383 edges and stays
-    // crossed (379 after 4 s); with it, no crossing at any tick, 88 points touching itself
-    // at most, lying 0.032 to 0.174 m up. The bounds below leave room for a few: which
-    // pairs the contacts look at moves with the last digits, and a small change to that
-    // (each point's motion taken relative to the sheet's) gave 2 edges at 8 ticks, none at
-    // the end; a crease closing flat within one ring still crosses (see
-    // `docs/ARCHITECTURE.md`, "Surfaces meeting surfaces").
+    // Issue 35: the sheet lands, folds on itself and lies on the floor untangled. Without
+    // self-contact it crosses itself at up to 382 edges and stays crossed (376 after 4 s);
+    // with it, no crossing at any tick (issue 64: a crossing the contacts leave is undone
+    // by the impact zones at the end of its step; before them, a crease closing within
+    // the rings self-contact leaves out crossed at 1 to 7 edges for up to 20 ticks), 88
+    // points touching itself at most, lying 0.032 to 0.175 m up (measured 2026-12-07).
     let with = drop_sheet_on_the_floor(true);
-    assert!(
-        with.worst <= 5,
-        "the sheet crossed itself at {} edges",
-        with.worst
-    );
-    assert!(
-        with.crossed_ticks <= 12,
-        "crossed at {} ticks",
-        with.crossed_ticks
-    );
+    assert_eq!(with.worst, 0, "the sheet crossed itself");
     assert_eq!(with.at_the_end, 0, "it lies crossed");
     assert!(
         with.touching > 10,

@@ -159,16 +159,12 @@ fn a_hat_dropped_on_a_head_rests_on_it_outside() {
         ))
         .id();
     // The hat: the paper's cap of a unit sphere turned over (its rim down), its inside a
-    // unit sphere's, dropped from 1 m above the head. Its gravity is in its own
-    // coordinates, turned over with it.
+    // unit sphere's, dropped from 1 m above the head (gravity is the world's).
     let turn = Quat::from_rotation_x(PI);
     let hat = app
         .world_mut()
         .spawn((
-            DeformableSurface::cloud(
-                shapes::hat(3000, 1.0, -0.2),
-                config(300, turn.inverse() * g),
-            ),
+            DeformableSurface::cloud(shapes::hat(3000, 1.0, -0.2), config(300, g)),
             SurfaceMeeting::default(),
             Transform::from_xyz(0.0, 1.0, 0.0).with_rotation(turn),
         ))
@@ -238,7 +234,7 @@ fn crossings(app: &App, surfaces: &[Entity]) -> usize {
     surface_intersections(&points, &triangles)
 }
 
-/// Turns the gravity of surface `e` (its own coordinates) to `gravity`, from the zero it was
+/// Turns the gravity of surface `e` (the world's) to `gravity`, from the zero it was
 /// prepared with (so that it does not fall while another surface prepares).
 fn let_fall(app: &mut App, e: Entity, gravity: Vec3) {
     let mut stepper = app.world_mut().get_mut::<SurfaceStepper>(e).unwrap();
@@ -485,7 +481,7 @@ fn throw_sheet_at_drum(speed: f32, meet: bool) -> (usize, f32) {
     settle(&mut app, &[drum, thrown]);
     hold(&mut app, drum, |p| p.x.abs() > 0.46 || p.y.abs() > 0.46);
     let_fall(&mut app, drum, DOWN);
-    let_fall(&mut app, thrown, tilt.inverse() * DOWN);
+    let_fall(&mut app, thrown, DOWN);
     set_velocity(
         &mut app,
         thrown,

@@ -1176,10 +1176,11 @@ fn points_pinned_when_the_surface_is_ready_never_move() {
     assert!(lowest < -1.05, "the rest did not hang down: {lowest}");
 }
 
-/// Issue 37: gravity in world space. A sphere turned upside down falls along its own +Y
-/// (the world's −Y) with `WorldGravity`, and rises (falls along its own −Y) without it.
+/// Issue 64: gravity is the world's by default. A sphere turned upside down falls along its
+/// own +Y (the world's −Y), and with `SurfaceGravity::Own` it rises (falls along its own
+/// −Y).
 #[test]
-fn world_gravity_pulls_a_turned_surface_down() {
+fn a_turned_surface_falls_down_unless_its_gravity_is_its_own() {
     let mut app = create_app(&assets_dir(), TICK);
     let flipped = Transform::from_rotation(Quat::from_rotation_x(std::f32::consts::PI));
     let config = SurfaceConfig {
@@ -1189,16 +1190,16 @@ fn world_gravity_pulls_a_turned_surface_down() {
     let surface = || DeformableSurface::cloud(shapes::fibonacci_sphere(1000, 1.0), config);
     let with = app
         .world_mut()
+        .spawn((surface(), flipped, GlobalTransform::from(flipped)))
+        .id();
+    let without = app
+        .world_mut()
         .spawn((
             surface(),
             flipped,
             GlobalTransform::from(flipped),
-            WorldGravity::default(),
+            SurfaceGravity::Own,
         ))
-        .id();
-    let without = app
-        .world_mut()
-        .spawn((surface(), flipped, GlobalTransform::from(flipped)))
         .id();
     settle(&mut app, &[with, without]);
     let world_centre = |app: &App, e: Entity| {
@@ -1213,11 +1214,9 @@ fn world_gravity_pulls_a_turned_surface_down() {
     let rose = world_centre(&app, without).y - start[1].y;
     assert!(fell > 0.05, "fell {fell}");
     assert!(rose > 0.05, "rose {rose}");
-    let own = app
-        .world()
-        .get::<SurfaceStepper>(with)
-        .unwrap()
-        .config()
-        .gravity;
+    let stepper = app.world().get::<SurfaceStepper>(with).unwrap();
+    // The setting stays the world's; the step's is turned into the surface's coordinates.
+    assert_eq!(stepper.config().gravity, Vec3::NEG_Y * 9.81);
+    let own = stepper.gravity();
     assert!(own.distance(Vec3::Y * 9.81) < 1e-4, "{own}");
 }

@@ -96,7 +96,8 @@ fn main() {
 /// The playground's sphere: its cloud and settings (gas inside), floating when `gravity`
 /// is zero.
 fn playground_sphere(gravity: Vec3) -> (bevy_point_springs::core::PointCloud, SurfaceConfig) {
-    let assets = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets");
+    // The repository's assets (this crate is its `bench/` folder).
+    let assets = Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets");
     let cloud = read_cloud(&assets.join("sphere3203.ply"), None).unwrap();
     let config = SurfaceConfig {
         simplify: SimplifyConfig::target(338),
@@ -190,7 +191,6 @@ fn hat_on_sphere(meet: Meet) {
         solver: SolverConfig {
             integrator: Integrator::ImplicitEuler,
             drag: 1.0,
-            gravity: turn.inverse() * Vec3::new(0.0, -9.81, 0.0),
             ..default()
         },
         ..default()
@@ -354,7 +354,8 @@ fn median(times: &mut [Duration]) -> Duration {
 fn playground(solve: ContactSolve) {
     let (contact, name) = contact(solve);
     let mut app = create_app();
-    let assets = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets");
+    // The repository's assets (this crate is its `bench/` folder).
+    let assets = Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets");
     let sphere = read_cloud(&assets.join("sphere3203.ply"), None).unwrap();
     let hat = read_cloud(&assets.join("hat3000.ply"), None).unwrap();
     let solver = SolverConfig {

@@ -85,7 +85,7 @@ pub use prepare::{PreparationPool, PrepareAgain, PrepareAgainFailed};
 pub use save::{
     SAVED_GAME_MAGIC, SaveGameError, SaveGameMessage, SaveGameOutcome, SaveName, SurfaceBaked,
 };
-pub use world::{SurfacePins, WorldGravity, WorldSurfaceError, WorldSurfaces};
+pub use world::{SurfaceGravity, SurfacePins, WorldSurfaceError, WorldSurfaces};
 
 /// All of the crate's plugins that the enabled features bring, on one schedule: the
 /// simulation ([`PointSpringsPlugin`]); with `render`, surfel drawing (left out where the
@@ -197,7 +197,7 @@ impl Plugin for PointSpringsPlugin {
             .register_type::<SaveName>()
             .register_type::<SurfaceMeeting>()
             .register_type::<SurfaceMeetingReport>()
-            .register_type::<WorldGravity>()
+            .register_type::<SurfaceGravity>()
             .add_message::<GrabMessage>()
             .add_message::<SaveGameMessage>()
             .add_message::<SaveGameOutcome>()
@@ -247,6 +247,7 @@ impl Plugin for PointSpringsPlugin {
                     (
                         sleep::wake_surfaces,
                         simulate::integrate,
+                        meet::untangle_surfaces,
                         attach::record_pulls,
                         meet::record_meeting_contacts,
                         health::watch_health,

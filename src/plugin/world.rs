@@ -3,7 +3,8 @@
 //! game thinks in the world's: [`WorldSurfaces`] pushes on points and reads the deformed
 //! surface in world coordinates, through the surface's [`GlobalTransform`], and
 //! [`SurfacePins`] pins points (by index, or near a world position) and frees them, and
-//! [`WorldGravity`] keeps a surface's gravity pointing the world's way however it turns.
+//! [`SurfaceGravity`] says whether a surface's gravity is the world's (the default) or
+//! turns with it.
 //!
 //! ```
 //! use bevy::prelude::*;
@@ -28,7 +29,7 @@ use bevy::prelude::*;
 use super::components::{
     DenseSurface, SimulationPoints, SurfaceForces, SurfaceMasses, SurfaceSleep, SurfaceStepper,
 };
-use crate::core::solver::{STANDARD_GRAVITY, hold_still};
+use crate::core::solver::hold_still;
 
 /// Why a [`WorldSurfaces`] call did nothing.
 #[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
@@ -291,39 +292,50 @@ impl SurfacePins<'_, '_> {
     }
 }
 
-/// Gravity in world coordinates (m/s²) for a surface that turns: each tick the plugin sets
-/// the surface's own gravity ([`SolverConfig::gravity`](crate::core::solver::SolverConfig),
-/// in its own coordinates) to this one seen from the surface's transform, so that a surface
-/// turned upside down still falls down. Without it, gravity turns with the surface.
-#[derive(Component, Debug, Clone, Copy, PartialEq, Reflect)]
-#[reflect(Component, Debug)]
-pub struct WorldGravity(pub Vec3);
-
-impl Default for WorldGravity {
-    /// Earth's, along −Y ([`STANDARD_GRAVITY`]).
-    fn default() -> Self {
-        Self(STANDARD_GRAVITY)
-    }
+/// Which way a surface's gravity points. Gravity
+/// ([`SolverConfig::gravity`](crate::core::solver::SolverConfig)) is the world's: each tick
+/// the plugin turns it into the surface's own coordinates by the surface's transform, so
+/// that a surface however turned falls down, as rapier's and avian's bodies do. Optional: a
+/// surface without it has [`SurfaceGravity::World`].
+#[derive(Component, Debug, Clone, Copy, PartialEq, Eq, Default, Reflect)]
+#[reflect(Component, Debug, Default)]
+pub enum SurfaceGravity {
+    /// Gravity is the world's, whatever the surface's transform (the default).
+    #[default]
+    World,
+    /// Gravity is in the surface's own coordinates: it turns with the surface (a surface
+    /// turned upside down falls up).
+    Own,
 }
 
-/// Sets each [`WorldGravity`] surface's own gravity from its transform; a surface whose
-/// gravity changed is woken.
+/// Sets each surface's gravity frame ([`Stepper::set_gravity_frame`]) from its transform
+/// and [`SurfaceGravity`]; a surface whose gravity changed is woken.
+///
+/// [`Stepper::set_gravity_frame`]: crate::core::solver::Stepper::set_gravity_frame
 pub(crate) fn apply_world_gravity(
     mut surfaces: Query<(
         Entity,
-        &WorldGravity,
+        Option<&SurfaceGravity>,
         &GlobalTransform,
         &mut SurfaceStepper,
         &mut SurfaceSleep,
     )>,
 ) {
     for (entity, gravity, transform, mut stepper, mut sleep) in &mut surfaces {
-        let local = local_force(transform, gravity.0);
-        if stepper.config().gravity == local {
+        let frame = match gravity.copied().unwrap_or_default() {
+            SurfaceGravity::World => {
+                let linear = Mat3::from(transform.affine().matrix3);
+                (linear != Mat3::IDENTITY).then(|| linear.inverse())
+            }
+            SurfaceGravity::Own => None,
+        };
+        if stepper.gravity_frame() == frame {
             continue;
         }
-        match stepper.0.set_gravity(local) {
-            Ok(()) => sleep.wake(),
+        let before = stepper.gravity();
+        match stepper.bypass_change_detection().0.set_gravity_frame(frame) {
+            Ok(()) if stepper.gravity() != before => sleep.wake(),
+            Ok(()) => {}
             Err(e) => warn!("point-springs surface {entity}: world gravity not applied: {e}"),
         }
     }

@@ -17,14 +17,40 @@ use crate::core::solver::contact::PointGrid;
 /// A grid over the triangles' centres finds the candidates, so the cost grows with the
 /// surface, not its square (unless one triangle is far larger than the rest).
 pub fn surface_intersections(positions: &[Vec3], triangles: &[[u32; 3]]) -> usize {
+    let mut count = 0;
+    let mut last = None;
+    for_each_crossing(positions, triangles, |edge, _| {
+        count += usize::from(last != Some(edge));
+        last = Some(edge);
+    });
+    count
+}
+
+/// Every (edge, triangle) pair of `triangles` over `positions` where the edge crosses the
+/// triangle and shares no corner with it: the edge's ends (ascending) and the triangle's
+/// index, edge by edge in ascending order, each edge's triangles ascending. Left out as in
+/// [`surface_intersections`].
+pub fn crossings(positions: &[Vec3], triangles: &[[u32; 3]]) -> Vec<([u32; 2], u32)> {
+    let mut found = Vec::new();
+    for_each_crossing(positions, triangles, |edge, t| found.push((edge, t)));
+    found
+}
+
+/// Calls `crossed(edge, triangle)` for each crossing, in the order [`crossings`] gives.
+fn for_each_crossing(positions: &[Vec3], all: &[[u32; 3]], mut crossed: impl FnMut([u32; 2], u32)) {
     let n = positions.len();
     let valid = |t: &[u32; 3]| {
         t.iter()
             .all(|&c| (c as usize) < n && positions[c as usize].is_finite())
     };
-    let triangles: Vec<[u32; 3]> = triangles.iter().copied().filter(valid).collect();
+    let (index, triangles): (Vec<u32>, Vec<[u32; 3]>) = all
+        .iter()
+        .enumerate()
+        .filter(|(_, t)| valid(t))
+        .map(|(k, t)| (k as u32, *t))
+        .unzip();
     if triangles.is_empty() {
-        return 0;
+        return;
     }
     let corners = |t: &[u32; 3]| t.map(|c| positions[c as usize]);
     let centres: Vec<Vec3> = triangles
@@ -46,23 +72,27 @@ pub fn surface_intersections(positions: &[Vec3], triangles: &[[u32; 3]]) -> usiz
         .collect();
     edges.sort_unstable();
     edges.dedup();
-    let mut count = 0;
+    let mut hits = Vec::new();
     for [a, b] in edges {
         let (p, q) = (positions[a as usize], positions[b as usize]);
         let (mid, half) = ((p + q) * 0.5, p.distance(q) * 0.5);
         let r = Vec3::splat(half + reach);
-        let mut crossed = false;
+        hits.clear();
         grid.near(mid - r, mid + r, |k| {
             let t = &triangles[k];
-            if crossed || t.contains(&a) || t.contains(&b) {
+            if t.contains(&a) || t.contains(&b) {
                 return;
             }
             let [x, y, z] = corners(t);
-            crossed = segment_crosses_triangle(p, q, x, y, z);
+            if segment_crosses_triangle(p, q, x, y, z) {
+                hits.push(index[k]);
+            }
         });
-        count += usize::from(crossed);
+        hits.sort_unstable();
+        for &t in &hits {
+            crossed([a, b], t);
+        }
     }
-    count
 }
 
 /// Whether the segment `p`–`q` passes through the triangle `a b c` (Möller–Trumbore, in

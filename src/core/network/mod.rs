@@ -44,7 +44,7 @@ mod mass;
 pub mod mesh;
 mod repair;
 mod reshape;
-pub use intersect::{segment_crosses_triangle, surface_intersections};
+pub use intersect::{crossings, segment_crosses_triangle, surface_intersections};
 pub use reshape::RestShape;
 
 use crate::core::simplify::{MAX_SIMPLIFY_K, MIN_SIMPLIFY_K, MIN_SIMULATION_POINTS};

@@ -196,7 +196,10 @@ pub struct SolverConfig {
     pub integrator: Integrator,
     /// How spring damping acts.
     pub damping_model: DampingModel,
-    /// Gravitational acceleration (eq 4).
+    /// Gravitational acceleration (eq 4), m/s², in the world's coordinates: the plugin turns
+    /// it into each surface's own coordinates, so that a surface however turned falls the
+    /// world's way (unless it asks for its own frame); the core and the tool have no world,
+    /// so there it is the solver's own ([`Stepper::gravity`](super::Stepper::gravity)).
     pub gravity: Vec3,
     /// Viscous drag rate μ (1/s): force −μ·m·v on every point.
     pub drag: f32,

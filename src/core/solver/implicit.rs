@@ -192,24 +192,32 @@ pub(crate) struct Scratch {
     curvatures: Vec<CurvatureBlock>,
     /// The velocities at the start of the step (curvature bending's right-hand side).
     velocities: Vec<DVec3>,
-    /// Each point's contact normal while a contact holds it in the solve (zero: free).
+    /// Each point's contact normal while a contact holds it in the solve (zero: free), and
+    /// a second axis where two contacts hold it (unit, ⊥ the first; zero: none).
     normal: Vec<DVec3>,
+    normal2: Vec<DVec3>,
     /// Whether a contact held each point at the end of the last step (the next step's
-    /// first guess).
+    /// first guess), and whether a moving body's contact beside an immovable one did.
     held: Vec<bool>,
+    held_by_body: Vec<bool>,
     /// Whether each point had a contact in the last step, held or not.
     touched: Vec<bool>,
     /// How the surface's pushes changed with each moving body's velocity in the last step,
     /// by the body's key ([`StepBody::key`]).
     resisted: Vec<(u64, (DMat3, DMat3))>,
+    /// Each pinch's push at the end of the last step (a moving body on a point something
+    /// immovable holds), by the body's key and the point: the next step's first guess.
+    pinched: Vec<(u64, u32, (f64, DVec3))>,
     /// The preconditioner's blocks and buffers.
     sweeps: sweeps::GaussSeidel,
 }
 
 impl Scratch {
     pub fn reset_warm_start(&mut self) {
+        self.pinched.clear();
         self.dv.iter_mut().for_each(|d| *d = DVec3::ZERO);
         self.held.iter_mut().for_each(|h| *h = false);
+        self.held_by_body.iter_mut().for_each(|h| *h = false);
         self.touched.iter_mut().for_each(|h| *h = false);
     }
 
@@ -227,6 +235,8 @@ impl Scratch {
 
     /// Replaces what [`Self::held`] gave (a snapshot's; in range).
     pub fn set_held(&mut self, held: &[u32], touched: &[u32]) {
+        self.held_by_body.fill(false);
+        self.pinched.clear();
         for (flags, set) in [(&mut self.held, held), (&mut self.touched, touched)] {
             flags.fill(false);
             for &i in set {
@@ -264,7 +274,10 @@ impl Scratch {
         self.own.resize(n, 0.0);
         self.normal.clear();
         self.normal.resize(n, DVec3::ZERO);
+        self.normal2.clear();
+        self.normal2.resize(n, DVec3::ZERO);
         self.held.resize(n, false);
+        self.held_by_body.resize(n, false);
         self.touched.resize(n, false);
         self.diag.resize(n, Sym3::default());
         self.diag_inv.resize(n, Sym3::default());
@@ -394,7 +407,7 @@ impl Stepper {
     ) -> CgOutcome {
         let n = points.len();
         let layout = &model.springs.layout;
-        let config = *self.config();
+        let config = self.step_config();
         let mut scratch = std::mem::take(&mut self.implicit);
         scratch.resize(n, layout.len());
         let h = f64::from(h);
@@ -405,7 +418,7 @@ impl Stepper {
             curvature_normals: &self.curvature_normals,
         };
         let mut gas_scale = assemble(&mut scratch, forces, points, model, &config, h);
-        let mut contacts = Contacts::new(external, points, model);
+        let mut contacts = Contacts::new(external, points, model, h);
         let mut outcome = conjugate_gradient(
             &config,
             model.springs,
@@ -463,6 +476,7 @@ impl Stepper {
             let x = points.x.get(i) + points.v.get(i) * hf;
             points.x.set(i, x);
         }
+        contacts.recover(points, &mut self.body_moves);
         self.implicit = scratch;
         outcome
     }
@@ -839,11 +853,12 @@ fn precondition(s: &mut Scratch, gauss_seidel: bool) -> f64 {
     rz
 }
 
-/// Removes from each vector its part along its point's contact normal (Baraff & Witkin
-/// 1998's filter S = I − n̂n̂ᵀ; a zero normal leaves the vector alone).
-fn filter(normal: &[DVec3], v: &mut [DVec3]) {
-    for (v, n) in v.iter_mut().zip(normal) {
-        *v -= *n * n.dot(*v);
+/// Removes from each vector its part along its point's contact normal, and along its second
+/// axis where it has one (Baraff & Witkin 1998's filter S = I − n̂n̂ᵀ − êêᵀ; zero axes leave
+/// the vector alone).
+fn filter(normal: &[DVec3], normal2: &[DVec3], v: &mut [DVec3]) {
+    for ((v, n), e) in v.iter_mut().zip(normal).zip(normal2) {
+        *v -= *n * n.dot(*v) + *e * e.dot(*v);
     }
 }
 
@@ -865,7 +880,7 @@ fn iterate(
         s.r[i] = s.rhs[i] - s.q[i];
     }
     if filtered {
-        filter(&s.normal, &mut s.r);
+        filter(&s.normal, &s.normal2, &mut s.r);
     } else if dot(&s.r, &s.r).sqrt() >= b_norm {
         s.reset_warm_start();
         s.r.copy_from_slice(&s.rhs);
@@ -880,7 +895,7 @@ fn iterate(
     }
     let mut rz = precondition(s, gauss_seidel);
     if filtered {
-        filter(&s.normal, &mut s.z);
+        filter(&s.normal, &s.normal2, &mut s.z);
     }
     s.p.copy_from_slice(&s.z);
     let mut iterations = 0;
@@ -889,7 +904,7 @@ fn iterate(
         // p is filtered, so p·(S·A·p) = p·A·p.
         let pq = system.apply(&s.p, &mut s.q);
         if filtered {
-            filter(&s.normal, &mut s.q);
+            filter(&s.normal, &s.normal2, &mut s.q);
         }
         let descends = pq > 0.0;
         if !descends {
@@ -914,7 +929,7 @@ fn iterate(
         }
         let rz_new = precondition(s, gauss_seidel);
         if filtered {
-            filter(&s.normal, &mut s.z);
+            filter(&s.normal, &s.normal2, &mut s.z);
         }
         // A new preconditioner starts the search directions again from the iterate.
         let beta = if restart { 0.0 } else { rz_new / rz };
@@ -1298,7 +1313,7 @@ mod tests {
             }
             // The solve meets its tolerance on the written-out system.
             let none = ExternalForces::zeros(points.len());
-            let mut contacts = Contacts::new(&none, &points, model);
+            let mut contacts = Contacts::new(&none, &points, model, 1.0 / 60.0);
             let outcome = conjugate_gradient(&config, &springs, &mut s, gas_scale, &mut contacts);
             assert!(outcome.converged);
             let b_norm = dot(&s.rhs, &s.rhs).sqrt();

@@ -724,6 +724,12 @@ impl ExternalForces {
                 what: "friction",
             });
         }
+        if !(non_negative(contact.recover) && contact.recover <= STATE_LIMIT) {
+            return Err(SolverError::InvalidContact {
+                point,
+                what: "overlap to recover",
+            });
+        }
         self.contacts.push(StepContact { normal, ..contact });
         Ok(())
     }

@@ -377,7 +377,7 @@ impl Stepper {
     ) {
         let n = state.len();
         let config = self.config();
-        let (gravity, drag) = (config.gravity.as_dvec3(), f64::from(config.drag));
+        let (gravity, drag) = (self.gravity().as_dvec3(), f64::from(config.drag));
         let mut pushed = vec![DVec3::ZERO; n];
         for (i, p) in pushed.iter_mut().enumerate() {
             let m = f64::from(model.masses.mass[i]);

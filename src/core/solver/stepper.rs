@@ -10,7 +10,7 @@
 //! [`Solver::step`](super::Solver::step) runs both, so a surface stepped through its parts
 //! and one stepped as a [`Solver`](super::Solver) give the same bits.
 
-use glam::Vec3;
+use glam::{Mat3, Vec3};
 
 use super::parts::{
     Anchors, ExternalForces, Masses, PointState, Pressure, Soa3, Springs, sane, within,
@@ -88,6 +88,12 @@ pub struct Stepper {
     measure_pins: bool,
     /// The impulse that held each pinned point during the last step (N·s; zero where free).
     pub(crate) pin_impulses: Vec<Vec3>,
+    /// How the world's vectors turn into the stepper's coordinates for gravity (none: they
+    /// are the same): see [`Stepper::gravity`].
+    gravity_frame: Option<Mat3>,
+    /// How far the last step moved each of its bodies out of the points they pinch (the
+    /// surface's coordinates; see [`Stepper::body_moves`]).
+    pub(crate) body_moves: Vec<Vec3>,
 }
 
 impl Stepper {
@@ -151,15 +157,54 @@ impl Stepper {
         Ok(())
     }
 
-    /// Sets gravity (eq 4) alone, keeping the other settings and what the stepper has
-    /// measured of them (gravity does not change the stable step); a value that is not
-    /// finite is refused.
+    /// Sets gravity (eq 4, [`SolverConfig::gravity`], in the world's coordinates) alone,
+    /// keeping the other settings and what the stepper has measured of them (gravity does
+    /// not change the stable step); a value that is not finite is refused.
     pub fn set_gravity(&mut self, gravity: Vec3) -> Result<(), SolverError> {
         if !gravity.is_finite() {
             return Err(SolverError::InvalidConfig("gravity must be finite"));
         }
         self.config.gravity = gravity;
         Ok(())
+    }
+
+    /// The gravity each step applies, in the stepper's own coordinates:
+    /// [`SolverConfig::gravity`] (the world's) turned by the gravity frame
+    /// ([`Stepper::set_gravity_frame`]), or as it is without one. The core and the tool
+    /// have no world, so there the two are the same; the plugin sets each surface's frame
+    /// from its transform, so that a surface however turned falls the world's way.
+    pub fn gravity(&self) -> Vec3 {
+        match self.gravity_frame {
+            Some(frame) => frame * self.config.gravity,
+            None => self.config.gravity,
+        }
+    }
+
+    /// Sets how the world's vectors map into the stepper's coordinates (the inverse of the
+    /// linear part of its placement in the world; none: the same coordinates), for
+    /// [`Stepper::gravity`]. A frame with a number that is not finite is refused.
+    pub fn set_gravity_frame(&mut self, frame: Option<Mat3>) -> Result<(), SolverError> {
+        if frame.is_some_and(|f| !f.is_finite()) {
+            return Err(SolverError::InvalidConfig(
+                "the gravity frame must be finite",
+            ));
+        }
+        self.gravity_frame = frame;
+        Ok(())
+    }
+
+    /// The gravity frame ([`Stepper::set_gravity_frame`]).
+    pub fn gravity_frame(&self) -> Option<Mat3> {
+        self.gravity_frame
+    }
+
+    /// The settings a step uses: [`Stepper::config`] with gravity in the stepper's own
+    /// coordinates ([`Stepper::gravity`]).
+    pub(crate) fn step_config(&self) -> SolverConfig {
+        SolverConfig {
+            gravity: self.gravity(),
+            ..self.config
+        }
     }
 
     /// Running totals.
@@ -253,7 +298,7 @@ impl Stepper {
     }
 
     pub(super) fn compute_internal(&mut self, points: &PointState, model: StepParts<'_>) {
-        let g = self.config.gravity;
+        let g = self.gravity();
         let mu = self.config.drag;
         let (v, m) = (&points.v, &model.masses.mass);
         base_forces(&mut self.fa.x, &v.x, m, g.x, mu);
@@ -484,6 +529,8 @@ impl Stepper {
         self.contact_impulses.clear();
         self.contact_impulses
             .resize(external.contacts.len(), Vec3::ZERO);
+        self.body_moves.clear();
+        self.body_moves.resize(external.bodies.len(), Vec3::ZERO);
         self.pin_impulses.clear();
         if self.measure_pins {
             self.pin_impulses.resize(points.len(), Vec3::ZERO);
@@ -554,9 +601,11 @@ impl Stepper {
                 points.v.copy_from(v);
             }
             self.implicit.reset_warm_start();
-            // The step did not happen: neither did its contacts, nor its pins' pulls.
+            // The step did not happen: neither did its contacts, nor its pins' pulls, nor
+            // its bodies' moves.
             self.contact_impulses.fill(Vec3::ZERO);
             self.pin_impulses.fill(Vec3::ZERO);
+            self.body_moves.fill(Vec3::ZERO);
             report.recovered = true;
             report.finite = true;
         }
@@ -593,9 +642,21 @@ impl Stepper {
         &self.contact_impulses
     }
 
-    /// Forgets the last step's contact impulses (once a caller has read them).
+    /// Forgets the last step's contact impulses and body moves (once a caller has read
+    /// them).
     pub fn clear_contact_impulses(&mut self) {
         self.contact_impulses.clear();
+        self.body_moves.clear();
+    }
+
+    /// How far the last step moved each body it solved with the surface
+    /// ([`ExternalForces::add_body`], in that order; the surface's coordinates) out of the
+    /// points it pinches against something immovable: those points cannot give way, so the
+    /// body's overlap with them is moved out of the body, by position (the caller moves
+    /// it; its velocity keeps nothing of it). Zero where it pinches nothing, and when the
+    /// guard undid the step.
+    pub fn body_moves(&self) -> &[Vec3] {
+        &self.body_moves
     }
 
     /// Whether each step measures what holds its pinned points ([`Stepper::pin_impulses`]).
@@ -701,7 +762,7 @@ impl Stepper {
             bending: model.springs.hinges.energy(points) + model.springs.curvatures.energy(points),
             ..Energy::default()
         };
-        let g = self.config.gravity.as_dvec3();
+        let g = self.gravity().as_dvec3();
         let masses = model.masses;
         for i in 0..points.len() {
             if masses.is_pinned(i) {

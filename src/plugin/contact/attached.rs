@@ -35,7 +35,7 @@ pub(crate) fn predict_attached_bodies(
     let dt = time.delta_secs();
     let gravity = configuration.single().map_or(Vec3::ZERO, |c| c.gravity);
     for (mut attachments, stepper, place) in &mut surfaces {
-        let frame = SurfaceFrame::new(place, stepper.config().gravity, dt);
+        let frame = SurfaceFrame::new(place, stepper.gravity(), dt);
         let solved = stepper.integrator() == Integrator::ImplicitEuler
             && stepper.config().implicit_solver == ImplicitSolver::ConjugateGradient
             && frame.is_similarity();

@@ -35,8 +35,9 @@ pub(super) struct BodyContacts {
 }
 
 impl RigidSide<'_> {
-    /// Resolves the contacts of each body in turn and applies the opposite impulses to the
-    /// dynamic ones; returns the impulses on the surface, body after body. With
+    /// Resolves the contacts of each body in turn; returns the impulses on the surface, body
+    /// after body, their opposites owed to the dynamic bodies (`held.owed`, given after the
+    /// surface's step). With
     /// [`ContactSolve::InStep`], the contacts go to `held` instead, for the surface's step
     /// to solve: those with bodies nothing moves, and those with dynamic bodies too when
     /// `dynamic_in_step` (the body's estimated state after the contacts is its guess, and
@@ -84,12 +85,32 @@ impl RigidSide<'_> {
             let moving_in_step = !immovable && solve == ContactSolve::InStep && dynamic_in_step;
             let touching: Vec<bool> = proximities
                 .iter()
-                .map(|p| will_touch(&state, p, dt, params))
+                .map(|p| will_touch(&state, p, dt))
                 .collect();
             if touching.iter().filter(|t| **t).count() > 1 {
                 reweigh(&mut proximities, &touching);
             }
             let predicted = state;
+            if let Some(h) = handle {
+                // Should the surface not take its step (the guard undoes it), it stood
+                // still: the body is stopped as by a surface nothing moves.
+                let mut still = predicted;
+                let mut rigid_points: Vec<Proximity> = proximities
+                    .iter()
+                    .map(|p| Proximity {
+                        inv_mass: 0.0,
+                        ..*p
+                    })
+                    .collect();
+                if let Ok(stopped) = resolve(&mut still, &mut rigid_points, dt, params) {
+                    held.if_still.extend(
+                        stopped
+                            .iter()
+                            .filter(|c| c.impulse.is_finite())
+                            .map(|c| (h, -c.impulse, c.at)),
+                    );
+                }
+            }
             let Ok(impulses) = resolve(&mut state, &mut proximities, dt, params) else {
                 continue;
             };
@@ -115,12 +136,13 @@ impl RigidSide<'_> {
                 states.insert(h, state);
                 continue;
             }
-            if let (Some(h), Some(rigid)) = (handle, handle.and_then(|h| rigid_bodies.get_mut(h))) {
+            if let (Some(h), Some(rigid)) = (handle, handle.and_then(|h| rigid_bodies.get(h))) {
                 states.insert(h, state);
                 if rigid.is_dynamic() {
-                    for c in &impulses {
-                        rigid.apply_impulse_at_point(-c.impulse, c.at, true);
-                    }
+                    // Given to the body once the surface has taken the step they went into
+                    // (a step the guard undoes gives its bodies nothing).
+                    held.owed
+                        .extend(impulses.iter().map(|c| (h, -c.impulse, c.at)));
                 }
             }
             all.extend(impulses);
@@ -140,6 +162,12 @@ pub(super) struct Held {
     /// The dynamic bodies the contacts' `body` indices name: each one's handle, its state
     /// without the contacts and its state after the estimated ones (the guess).
     pub(super) bodies: Vec<(RigidBodyHandle, BodyState, BodyState)>,
+    /// The estimated impulses' opposites, owed to dynamic bodies once the surface has
+    /// stepped with the impulses (world): the body, the impulse, where it acts.
+    pub(super) owed: Vec<(RigidBodyHandle, Vec3, Vec3)>,
+    /// What each dynamic body takes instead if the surface does not step (the guard undoes
+    /// its step): stopped as by a surface nothing moves, at its points' velocities.
+    pub(super) if_still: Vec<(RigidBodyHandle, Vec3, Vec3)>,
 }
 
 /// A rapier body as contacts see it: its velocity at the end of the tick without contacts

@@ -145,7 +145,8 @@ pub struct SurfaceContact {
     pub enabled: bool,
     /// Coulomb friction coefficient μ.
     pub friction: f32,
-    /// Fraction of an overlap pushed out per tick, in [0, 1].
+    /// Fraction of an overlap moved out per tick, in [0, 1], by position (never by
+    /// velocity).
     pub depth_recovery: f32,
     /// Radius of each simulation point's sphere, as a share of the mean rest length of its
     /// stretch springs.
@@ -215,6 +216,21 @@ pub struct SurfaceContacts {
     /// where it touches it (world coordinates).
     #[reflect(ignore)]
     links: Vec<(Option<RigidBodyHandle>, Vec3)>,
+    /// The dynamic bodies handed to the step this tick: each one's index among the step's
+    /// bodies, and its handle.
+    #[reflect(ignore)]
+    bodies: Vec<(u32, RigidBodyHandle)>,
+    /// The estimated impulses' opposites owed to dynamic bodies once the surface steps
+    /// (world): the body, the impulse, where it acts; and the surface's step count when
+    /// they were found.
+    #[reflect(ignore)]
+    owed: Vec<(RigidBodyHandle, Vec3, Vec3)>,
+    #[reflect(ignore)]
+    owed_at_step: u64,
+    /// What the dynamic bodies take instead if the surface does not take its step (the
+    /// guard undoes it): stopped as by a surface nothing moves (world).
+    #[reflect(ignore)]
+    if_still: Vec<(RigidBodyHandle, Vec3, Vec3)>,
     /// The index of the first of them among the step's contacts.
     #[reflect(ignore)]
     links_from: usize,

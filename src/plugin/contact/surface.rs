@@ -193,7 +193,7 @@ impl SurfaceView<'_> {
         }
         match self.stepper.own_force(i) {
             Some(f) => f * (dt / step_mass),
-            None => self.stepper.config().gravity * dt,
+            None => self.stepper.gravity() * dt,
         }
     }
 

@@ -7,7 +7,8 @@ use std::collections::HashMap;
 use bevy::ecs::query::QueryData;
 use bevy::prelude::*;
 use bevy_rapier3d::plugin::{DefaultRapierContext, RapierConfiguration};
-use bevy_rapier3d::prelude::{CollisionGroups, WriteRapierContext};
+use bevy_rapier3d::prelude::{CollisionGroups, RapierContextMut, TimestepMode, WriteRapierContext};
+use bevy_rapier3d::rapier::dynamics::{RigidBody, RigidBodyHandle};
 use bevy_rapier3d::rapier::geometry::InteractionGroups;
 
 use super::bodies::RigidSide;
@@ -27,7 +28,7 @@ use crate::plugin::components::{
 #[query_data(mutable)]
 pub struct ContactSurface {
     entity: Entity,
-    points: &'static SimulationPoints,
+    points: &'static mut SimulationPoints,
     masses: &'static SurfaceMasses,
     springs: &'static SurfaceSprings,
     network: &'static SurfaceNetwork,
@@ -88,7 +89,7 @@ fn contact_surface(
 ) -> usize {
     let ContactSurfaceItem {
         entity,
-        points,
+        mut points,
         masses,
         springs,
         network,
@@ -115,9 +116,9 @@ fn contact_surface(
     };
     report.start_tick(&network.0, contact.radius_scale);
     if contact.enabled && points.len() == report.radii().len() {
-        let frame = SurfaceFrame::new(place, stepper.config().gravity, rigid.dt);
+        let frame = SurfaceFrame::new(place, stepper.gravity(), rigid.dt);
         let surface = SurfaceView {
-            points,
+            points: &points,
             masses,
             springs,
             stepper,
@@ -133,6 +134,8 @@ fn contact_surface(
         } else {
             let touched = touch(&surface, colliders, groups, rigid, &params, contact.solve);
             report.record(&touched, frame, rigid.dt, &mut forces);
+            report.owed_at_step = stepper.diagnostics().steps;
+            move_out(&touched, frame, &mut points);
         }
     }
     let touching = report.touching;
@@ -142,11 +145,29 @@ fn contact_surface(
     touching
 }
 
+/// The estimated contacts' overlaps moved out of, by position before the step (the
+/// contacts solved in the step move theirs in it): no velocity carries them.
+fn move_out(touched: &Touched, frame: SurfaceFrame, points: &mut Mut<'_, SimulationPoints>) {
+    if touched.impulses.iter().all(|c| c.moved == Vec3::ZERO) {
+        return;
+    }
+    for c in &touched.impulses {
+        if c.moved != Vec3::ZERO {
+            let at = points.position(c.point) + frame.to_local * c.moved;
+            // In range: a point of this surface; a bad value is refused and left out.
+            let _ = points.set_position(c.point, at);
+        }
+    }
+}
+
 impl SurfaceContacts {
     /// Starts a tick: the radii brought up to date, the last tick's counts cleared.
     fn start_tick(&mut self, network: &std::sync::Arc<SpringNetwork>, radius_scale: f32) {
         self.refresh_radii(network, radius_scale);
         self.links.clear();
+        self.bodies.clear();
+        self.owed.clear();
+        self.if_still.clear();
         self.colliders_near = 0;
         self.touching = 0;
         self.impulse = Vec3::ZERO;
@@ -171,6 +192,8 @@ impl SurfaceContacts {
         }
         self.touching = touched.impulses.len();
         self.total_impulse += self.impulse;
+        self.owed.clone_from(&touched.held.owed);
+        self.if_still.clone_from(&touched.held.if_still);
         self.links.clear();
         // The game's systems may hand contacts of their own to the step too.
         self.links_from = forces.contacts().len();
@@ -187,6 +210,11 @@ impl SurfaceContacts {
                     .ok()
             })
             .collect();
+        for (b, index) in bodies.iter().enumerate() {
+            if let Some(index) = index {
+                self.bodies.push((*index, held.bodies[b].0));
+            }
+        }
         for (c, at) in held.contacts.iter().zip(&held.at) {
             let (body, link) = match c.body {
                 None => (None, None),
@@ -209,18 +237,45 @@ impl SurfaceContacts {
 }
 
 /// After the step: the impulses of the contacts the step solved ([`ContactSolve::InStep`])
-/// added to each surface's report and to the tick's count, in world coordinates. The
-/// stepper's record is cleared once read, so a surface that did not step this tick (paused,
-/// asleep) adds nothing.
+/// added to each surface's report and to the tick's count, in world coordinates, and each
+/// dynamic body given the opposite of what the surface took (or, estimated, what it was
+/// owed), moved out of the points it pinches
+/// ([`Stepper::body_moves`](crate::core::solver::Stepper::body_moves)) and set where the
+/// step put it ([`land_where_the_step_put`]). The stepper's record is cleared once read, so
+/// a surface that did not step this tick (paused, asleep, undone by the guard) gives
+/// nothing.
 ///
 /// [`ContactSolve::InStep`]: super::ContactSolve::InStep
 pub(crate) fn record_step_contacts(
     mut surfaces: Query<(&mut SurfaceStepper, &GlobalTransform, &mut SurfaceContacts)>,
     mut rapier: WriteRapierContext,
+    configuration: Query<&RapierConfiguration, With<DefaultRapierContext>>,
+    mode: Option<Res<TimestepMode>>,
+    time: Res<Time>,
     mut diagnostics: ResMut<ContactDiagnostics>,
 ) {
-    let mut context = rapier.single_mut().ok();
+    let Ok(mut context) = rapier.single_mut() else {
+        return;
+    };
+    let gravity = configuration.single().map_or(Vec3::ZERO, |c| c.gravity);
+    let lag = integrator_lag(&context, mode.as_deref(), gravity, time.delta_secs());
+    let mut landed: Vec<RigidBodyHandle> = Vec::new();
     for (mut stepper, place, mut report) in &mut surfaces {
+        let report = report.bypass_change_detection();
+        let last = stepper.diagnostics();
+        // Whether the surface took the step this tick's contacts went into.
+        let stepped = !last.last.recovered && last.steps != report.owed_at_step;
+        let owed = std::mem::take(&mut report.owed);
+        let if_still = std::mem::take(&mut report.if_still);
+        // The estimated impulses' opposites if the surface took its step with them; if it
+        // did not, its bodies are stopped as by a surface that stood still.
+        let given = if stepped { owed } else { if_still };
+        for (handle, impulse, at) in given {
+            if let Some(body) = context.rigidbody_set.bodies.get_mut(handle) {
+                body.apply_impulse_at_point(impulse, at, true);
+                land_where_the_step_put(body, handle, lag, &mut landed);
+            }
+        }
         if stepper.contact_impulses().is_empty() {
             continue;
         }
@@ -240,11 +295,24 @@ pub(crate) fn record_step_contacts(
             let link = k
                 .checked_sub(report.links_from)
                 .and_then(|k| report.links.get(k).copied());
-            if let (Some((Some(handle), at)), Some(context)) = (link, context.as_mut())
+            if let Some((Some(handle), at)) = link
                 && world.is_finite()
                 && let Some(body) = context.rigidbody_set.bodies.get_mut(handle)
             {
                 body.apply_impulse_at_point(-world, at, true);
+            }
+        }
+        for &(index, handle) in &report.bodies {
+            let moved = stepper.body_moves().get(index as usize).copied();
+            let world = linear * moved.unwrap_or(Vec3::ZERO);
+            let Some(body) = context.rigidbody_set.bodies.get_mut(handle) else {
+                continue;
+            };
+            if world != Vec3::ZERO && world.is_finite() {
+                body.set_translation(body.translation() + world, true);
+            }
+            if stepped {
+                land_where_the_step_put(body, handle, lag, &mut landed);
             }
         }
         stepper.bypass_change_detection().0.clear_contact_impulses();
@@ -254,5 +322,53 @@ pub(crate) fn record_step_contacts(
         }
         report.touching += touching;
         diagnostics.touching += touching;
+    }
+}
+
+/// How much less far rapier's step moves a body under gravity than the surfaces' steps
+/// assume: a surface's step takes a body it touches to move by its velocity at the end of
+/// the tick (as its own points do, implicit and symplectic Euler alike), while rapier's
+/// solver takes M substeps, each adding its share of gravity before it moves the body, so
+/// the body moves (M − 1)/(2M)·g·dt² less far along gravity (0.375·g·dt², 1 mm a tick at
+/// 60 Hz with rapier's default 4 substeps): resting on a surface on that velocity, a crate
+/// stayed 1 mm off it, reported falling at 6 cm/s (measured 2026-12-07).
+fn integrator_lag(
+    context: &RapierContextMut<'_>,
+    mode: Option<&TimestepMode>,
+    gravity: Vec3,
+    dt: f32,
+) -> Vec3 {
+    let solver = context
+        .simulation
+        .integration_parameters
+        .num_solver_iterations;
+    let outer = match mode {
+        Some(
+            TimestepMode::Fixed { substeps, .. }
+            | TimestepMode::Variable { substeps, .. }
+            | TimestepMode::Interpolated { substeps, .. },
+        ) => *substeps,
+        None => 1,
+    };
+    let m = (solver.max(1) * outer.max(1)) as f32;
+    gravity * dt * dt * (m - 1.0) / (2.0 * m)
+}
+
+/// Moves a dynamic body that a surface's step solved with by rapier's lag behind that step
+/// ([`integrator_lag`], times the body's gravity scale), once a tick however many surfaces
+/// touched it, so that rapier's step ends it where the surfaces' step put it.
+fn land_where_the_step_put(
+    body: &mut RigidBody,
+    handle: RigidBodyHandle,
+    lag: Vec3,
+    landed: &mut Vec<RigidBodyHandle>,
+) {
+    if !body.is_dynamic() || landed.contains(&handle) {
+        return;
+    }
+    landed.push(handle);
+    let shift = lag * body.gravity_scale();
+    if shift != Vec3::ZERO && shift.is_finite() {
+        body.set_translation(body.translation() + shift, true);
     }
 }

@@ -12,7 +12,7 @@
 //!    second's points bucketed in a grid;
 //! 3. each point of the second is a small body (its sphere, its step mass) that the first's
 //!    points near it push and are pushed by, resolved as rigid contacts are
-//!    ([`resolve`]): the speculative sweep (a point still apart is stopped only where the
+//!    ([`resolve_in_passes`]): the speculative sweep (a point still apart is stopped only where the
 //!    gap would close within the tick), a share of an overlap pushed out, Coulomb friction;
 //! 4. each impulse goes to both surfaces' [`SurfaceForces`] as equal
 //!    and opposite forces over the tick, so momentum is exchanged exactly; each surface's
@@ -37,8 +37,8 @@ use bevy::prelude::*;
 use crate::core::network::SpringNetwork;
 use crate::core::solver::contact::{
     BodyState, ContactParams, DEFAULT_DEPTH_RECOVERY, DEFAULT_FRICTION, DEFAULT_RADIUS_SCALE,
-    DEFAULT_SELF_CONTACT_RINGS, PointGrid, Proximity, StepContact, group_step_masses,
-    overlapping_pairs, point_radii, resolve, step_masses,
+    DEFAULT_SELF_CONTACT_RINGS, PointGrid, Proximity, StepContact, Untangled, group_step_masses,
+    overlapping_pairs, point_radii, resolve_in_passes, step_masses, untangle,
 };
 
 use super::components::{
@@ -56,13 +56,15 @@ struct Link {
     with: [(u32, f32); 3],
 }
 
-/// What one contact found by the estimate hands to the step: the point, the normal (world)
-/// and the other side's point.
+/// What one contact found by the estimate hands to the step: the point, the normal (world),
+/// the other side's point and how far the pair is to be moved apart out of an overlap
+/// (world, by position: half by each side's step).
 #[derive(Debug, Clone, Copy)]
 struct Touch {
     point: usize,
     other: usize,
     normal: Vec3,
+    recover: f32,
 }
 
 /// Gauss–Seidel passes over the contacts between two surfaces, and over a surface's own,
@@ -235,6 +237,13 @@ pub struct SurfaceMeetingReport {
     owed: Vec<(u32, Vec3)>,
     #[reflect(ignore)]
     owed_self: Vec<(u32, Vec3)>,
+    /// With self-contact: where the points were when this tick's step began, and the
+    /// stepper's step count then ([`untangle_surfaces`]).
+    #[reflect(ignore)]
+    start: (Vec<Vec3>, u64),
+    /// What the fail-safe against crossing itself did last tick.
+    #[reflect(ignore)]
+    untangled: Untangled,
 }
 
 impl SurfaceMeetingReport {
@@ -261,6 +270,13 @@ impl SurfaceMeetingReport {
     /// The impulse other surfaces gave this one since it was prepared (world, N·s).
     pub fn total_impulse(&self) -> Vec3 {
         self.total_impulse
+    }
+
+    /// What the fail-safe against the surface passing through itself did last tick
+    /// ([`untangle`]): the crossings the step made (none, nearly always: self-contact's
+    /// contacts keep its folds apart) and the points moved back to undo them.
+    pub fn untangled(&self) -> Untangled {
+        self.untangled
     }
 
     fn refresh_radii(&mut self, network: &Arc<SpringNetwork>, scale: f32) {
@@ -375,8 +391,15 @@ pub fn meet_surfaces(time: Res<Time>, mut surfaces: Query<MeetParts>) {
             std::mem::take(&mut report.owed),
             std::mem::take(&mut report.owed_self),
         );
+        report.untangled = Untangled::default();
         if !meeting.enabled || !running(status, settings, once) {
+            report.start.0.clear();
             continue;
+        }
+        if meeting.self_contact {
+            report.start.0.clear();
+            report.start.0.extend(points.iter_positions());
+            report.start.1 = stepper.diagnostics().steps;
         }
         // What the steps added at the contacts last tick, owed back (counted in the report
         // when the steps made it).
@@ -438,7 +461,7 @@ impl Side {
         let linear = Mat3::from(place.matrix3);
         let scale = linear.determinant().abs().cbrt();
         let n = points.len();
-        let gravity = linear * stepper.config().gravity * dt;
+        let gravity = linear * stepper.gravity() * dt;
         let (mut at, mut start, mut push, mut radius) = (
             Vec::with_capacity(n),
             Vec::with_capacity(n),
@@ -453,7 +476,7 @@ impl Side {
             let v = linear * points.velocity(i);
             let f = stepper
                 .own_force(i)
-                .map_or(stepper.config().gravity * masses.mass(i), |f| f);
+                .map_or(stepper.gravity() * masses.mass(i), |f| f);
             let r = r * scale;
             lo = lo.min(p);
             hi = hi.max(p);
@@ -613,13 +636,14 @@ fn meet_pair(first: &mut Pair<'_>, a: &Side, second: &mut Pair<'_>, b: &Side, dt
             let pushed = push_apart(
                 &body, &mut vb[k], near, spheres, &mut va, &inv_a, dt, &params,
             );
-            for (i, impulse, normal) in pushed {
+            for (i, impulse, normal, recover) in pushed {
                 on_a.push((i, impulse));
                 on_b.push((k, -impulse));
                 touches.push(Touch {
                     point: i,
                     other: k,
                     normal,
+                    recover,
                 });
             }
         }
@@ -636,7 +660,7 @@ fn meet_pair(first: &mut Pair<'_>, a: &Side, second: &mut Pair<'_>, b: &Side, dt
             first,
             a,
             (i, va[i]),
-            t.normal,
+            (t.normal, 0.5 * t.recover),
             (entity_b, one(k), vb[k]),
             &params,
         );
@@ -644,7 +668,7 @@ fn meet_pair(first: &mut Pair<'_>, a: &Side, second: &mut Pair<'_>, b: &Side, dt
             second,
             b,
             (k, vb[k]),
-            -t.normal,
+            (-t.normal, 0.5 * t.recover),
             (entity_a, one(i), va[i]),
             &params,
         );
@@ -667,8 +691,9 @@ struct Sphere {
 
 /// Resolves the contacts of the point `body` (its velocity `velocity`) with the points
 /// `near` of a side (`spheres`: every point's place and radius; `v`, `inv_mass`: their
-/// velocities and inverse masses), in the order they happen ([`resolve`]); both
-/// velocities take the impulses. Returns each impulse on a near point, with its normal.
+/// velocities and inverse masses), in the order they happen ([`resolve_in_passes`]); both
+/// velocities take the impulses. Returns each impulse on a near point, with its normal and
+/// how far the pair is to be moved apart out of an overlap.
 #[allow(clippy::too_many_arguments)]
 fn push_apart(
     body: &Sphere,
@@ -679,7 +704,7 @@ fn push_apart(
     inv_mass: &dyn Fn(usize) -> f32,
     dt: f32,
     params: &ContactParams,
-) -> Vec<(usize, Vec3, Vec3)> {
+) -> Vec<(usize, Vec3, Vec3, f32)> {
     let mut state = BodyState {
         linear: *velocity,
         angular: Vec3::ZERO,
@@ -708,7 +733,7 @@ fn push_apart(
             })
         })
         .collect();
-    let Ok(impulses) = resolve(&mut state, &mut proximities, dt, params) else {
+    let Ok(impulses) = resolve_in_passes(&mut state, &mut proximities, dt, params, 1) else {
         return Vec::new();
     };
     *velocity = state.linear;
@@ -721,7 +746,7 @@ fn push_apart(
                 .iter()
                 .find(|p| p.point == c.point)
                 .map_or(Vec3::ZERO, |p| p.normal);
-            (c.point, c.impulse, normal)
+            (c.point, c.impulse, normal, c.moved.length())
         })
         .collect()
 }
@@ -731,13 +756,14 @@ fn push_apart(
 /// with their weights, and its velocity there): the step keeps the point's velocity along
 /// `normal` (world, from the other side towards this point) at least the estimate's, with
 /// the springs solved with it, so a point whose springs took part of its estimated push is
-/// pushed the rest of the way. What the two steps add at a pair's contacts is shared out
-/// between its points the next tick ([`record_meeting_contacts`]).
+/// pushed the rest of the way, and moves the point `recover` (world) out of an overlap by
+/// position. What the two steps add at a pair's contacts is shared out between its points
+/// the next tick ([`record_meeting_contacts`]).
 fn hand_to_step(
     pair: &mut Pair<'_>,
     side: &Side,
     own: (usize, Vec3),
-    normal: Vec3,
+    (normal, recover): (Vec3, f32),
     other: (Entity, [(u32, f32); 3], Vec3),
     params: &ContactParams,
 ) {
@@ -757,6 +783,7 @@ fn hand_to_step(
         friction: params.friction,
         body: None,
         arm: Vec3::ZERO,
+        recover: (recover / side.scale).max(0.0),
     };
     if pair.forces.add_contact(contact).is_ok() {
         pair.report.links.push(Link {
@@ -830,6 +857,40 @@ pub fn record_meeting_contacts(
                 report.total_impulse += j;
             }
         }
+    }
+}
+
+/// After the step: each surface meeting itself that stepped is checked for crossings of
+/// its network the step made, and those are undone ([`untangle`]: the points of each move
+/// as one zone from where they began, at their mean velocity).
+pub fn untangle_surfaces(
+    time: Res<Time>,
+    mut surfaces: Query<(
+        &SurfaceMeeting,
+        &mut SurfaceMeetingReport,
+        &mut SimulationPoints,
+        &SurfaceMasses,
+        &SurfaceNetwork,
+        &SurfaceStepper,
+    )>,
+) {
+    let dt = time.delta_secs();
+    for (meeting, mut report, mut points, masses, network, stepper) in &mut surfaces {
+        let report = report.bypass_change_detection();
+        let stepped = stepper.diagnostics().steps != report.start.1;
+        if !(meeting.enabled && meeting.self_contact) || report.start.0.is_empty() || !stepped {
+            continue;
+        }
+        let start = std::mem::take(&mut report.start.0);
+        // Read first (no change is marked unless a point moves back).
+        let crossed = {
+            let now: Vec<Vec3> = points.iter_positions().collect();
+            !crate::core::network::crossings(&now, &network.triangles).is_empty()
+        };
+        if crossed {
+            report.untangled = untangle(&start, &mut points, masses, &network.triangles, dt);
+        }
+        report.start.0 = start;
     }
 }
 

@@ -22,7 +22,7 @@ use bevy::prelude::*;
 use crate::core::network::SpringNetwork;
 use crate::core::solver::contact::{
     ContactParams, NetworkNeighbours, PointGrid, Stencil, StencilProximity, closest_on_triangle,
-    group_step_masses, stencil_impulse,
+    group_step_masses, recovery, stencil_impulse,
 };
 
 use super::{CONTACT_PASSES, Pair, Side, Sphere, Touch, hand_to_step, one, push_apart};
@@ -105,13 +105,14 @@ pub(super) fn meet_itself(pair: &mut Pair<'_>, side: &Side, dt: f32) {
                 &params,
             );
             v[k] = velocity;
-            for (i, impulse, normal) in pushed {
+            for (i, impulse, normal, recover) in pushed {
                 impulses.push((i, impulse));
                 impulses.push((k, -impulse));
                 touches.push(Touch {
                     point: i,
                     other: k,
                     normal,
+                    recover,
                 });
             }
         }
@@ -157,7 +158,7 @@ pub(super) fn meet_itself(pair: &mut Pair<'_>, side: &Side, dt: f32) {
             pair,
             side,
             (i, v[i]),
-            t.normal,
+            (t.normal, 0.5 * t.recover),
             (entity, one(k), v[k]),
             &params,
         );
@@ -165,7 +166,7 @@ pub(super) fn meet_itself(pair: &mut Pair<'_>, side: &Side, dt: f32) {
             pair,
             side,
             (k, v[k]),
-            -t.normal,
+            (-t.normal, 0.5 * t.recover),
             (entity, one(i), v[i]),
             &params,
         );
@@ -191,7 +192,7 @@ pub(super) fn meet_itself(pair: &mut Pair<'_>, side: &Side, dt: f32) {
                     pair,
                     side,
                     (c, v[c]),
-                    normal,
+                    (normal, 0.5 * recovery(fold.gap, &params)),
                     (entity, with, there),
                     &params,
                 );

@@ -443,7 +443,7 @@ fn solver(
         ui.add(slider(max_substeps, 1..=256, "max sub-steps"));
     }
     ui.horizontal(|ui| {
-        ui.label("gravity");
+        ui.label("gravity (world)");
         for axis in 0..3 {
             ui.add(egui::DragValue::new(&mut config.gravity[axis]).speed(0.1));
         }

@@ -13,6 +13,12 @@ pub(crate) const SPEED_SLACK: f64 = 1e-6;
 /// Sliding speeds (m/s) below this count as none.
 const SLIDE_EPSILON: f64 = 1e-9;
 
+/// A point's contact with a moving body and its contact with something immovable are a
+/// pinch when their normals are further apart than this cosine (120°): the body presses
+/// the point against the immovable one, and the step holds the body off the point there
+/// instead of moving the point.
+pub(crate) const PINCH_COSINE: f32 = -0.5;
+
 /// The contacts the step keeps, as indices into `contacts`: one per point that is not
 /// pinned, the one its velocity `v` at the step's start falls furthest short of where a
 /// point touches several bodies (a point takes one normal; a corner of two walls holds it
@@ -37,6 +43,62 @@ pub(crate) fn one_per_point(
     kept
 }
 
+/// Two contacts of one point whose normals are closer than this cosine (18°) are as one:
+/// the step keeps the one its point falls furthest short of.
+pub(crate) const PAIR_COSINE: f32 = 0.95;
+
+/// The contacts the implicit step keeps, as indices into `contacts`, ascending by point:
+/// [`one_per_point`]'s, and a second one where a point has it: where a point's contact
+/// with something immovable and one with a moving body press it from opposite sides (a
+/// pinch: [`PINCH_COSINE`]), both, the immovable one first (the point's best of each kind,
+/// by shortfall); else the best contact and the next best of the other kind (immovable or
+/// moving) whose normal is neither within [`PAIR_COSINE`] of it nor opposite it (a point
+/// pressed into a corner: a crate's side pushing a ball's bottom point along the floor
+/// holds it against both). Two contacts of one kind stay one (the contacts of surfaces
+/// meeting, each with its own normal from a nearby point, held together, pinned their
+/// points and let sheets pass through each other).
+pub(crate) fn with_pinches(
+    contacts: &[StepContact],
+    points: &PointState,
+    masses: &Masses,
+) -> Vec<usize> {
+    let shortfall = |c: &StepContact| c.min_speed - c.normal.dot(points.v.get(c.point as usize));
+    let mut order: Vec<usize> = (0..contacts.len())
+        .filter(|&k| !masses.is_pinned(contacts[k].point as usize))
+        .collect();
+    order.sort_by(|&a, &b| {
+        let (ca, cb) = (&contacts[a], &contacts[b]);
+        ca.point
+            .cmp(&cb.point)
+            .then(shortfall(cb).total_cmp(&shortfall(ca)))
+            .then(a.cmp(&b))
+    });
+    let mut kept = Vec::with_capacity(order.len());
+    for group in order.chunk_by(|&a, &b| contacts[a].point == contacts[b].point) {
+        let immovable = group.iter().copied().find(|&k| contacts[k].body.is_none());
+        let pressing = immovable.and_then(|a| {
+            group.iter().copied().find(|&k| {
+                contacts[k].body.is_some()
+                    && contacts[k].normal.dot(contacts[a].normal) < PINCH_COSINE
+            })
+        });
+        if let (Some(a), Some(b)) = (immovable, pressing) {
+            kept.extend([a, b]);
+            continue;
+        }
+        let best = group[0];
+        let n = contacts[best].normal;
+        let moving = contacts[best].body.is_some();
+        let second = group[1..].iter().copied().find(|&k| {
+            let cosine = contacts[k].normal.dot(n);
+            contacts[k].body.is_some() != moving && cosine < PAIR_COSINE && cosine > PINCH_COSINE
+        });
+        kept.push(best);
+        kept.extend(second);
+    }
+    kept
+}
+
 /// Coulomb friction at the velocity level: the change that slows the point's slide along
 /// the body (`relative` velocity, less its part along `normal`) by at most μ times the
 /// normal velocity change the contact made, and never reverses it.
@@ -52,7 +114,9 @@ pub(crate) fn friction_dv(relative: DVec3, normal: DVec3, mu: f64, normal_dv: f6
 /// After an explicit step of `h`: each kept contact's point (it has no neighbours within
 /// the step) takes the least velocity change along the normal that meets the contact, then
 /// friction, and moves `h` times that change further, as if its velocity had had it all
-/// step. Adds each contact's impulse (mass times change) to `impulses`.
+/// step; then out of an overlap by position ([`StepContact::recover`], less what its new
+/// velocity already moved it out). Adds each contact's impulse (mass times change) to
+/// `impulses`.
 pub(crate) fn project(
     points: &mut PointState,
     masses: &Masses,
@@ -66,18 +130,28 @@ pub(crate) fn project(
         let v = points.v.get(i).as_dvec3();
         let normal = c.normal.as_dvec3();
         let normal_dv = (f64::from(c.min_speed) - normal.dot(v)).max(0.0);
-        if normal_dv <= SPEED_SLACK {
-            continue;
+        if normal_dv > SPEED_SLACK {
+            let pushed = v + normal * normal_dv;
+            let relative = pushed - c.body_velocity.as_dvec3();
+            let change = normal * normal_dv
+                + friction_dv(relative, normal, f64::from(c.friction), normal_dv);
+            let change = change.as_vec3();
+            points.v.set(i, points.v.get(i) + change);
+            points.x.set(i, points.x.get(i) + change * h);
+            impulses[k] += change * masses.mass[i];
         }
-        let pushed = v + normal * normal_dv;
-        let relative = pushed - c.body_velocity.as_dvec3();
-        let change =
-            normal * normal_dv + friction_dv(relative, normal, f64::from(c.friction), normal_dv);
-        let change = change.as_vec3();
-        points.v.set(i, points.v.get(i) + change);
-        points.x.set(i, points.x.get(i) + change * h);
-        impulses[k] += change * masses.mass[i];
+        let leaving = (points.v.get(i) - c.body_velocity).dot(c.normal);
+        let out = recovered(c.recover, leaving, h);
+        if out > 0.0 {
+            points.x.set(i, points.x.get(i) + c.normal * out);
+        }
     }
+}
+
+/// How far to move a point out of an overlap by position after a step of `h` in which it
+/// left its body at `leaving` m/s along the normal: what `recover` asks beyond that.
+pub(crate) fn recovered(recover: f32, leaving: f32, h: f32) -> f32 {
+    (recover - leaving.max(0.0) * h).max(0.0)
 }
 
 #[cfg(test)]
@@ -118,6 +192,7 @@ mod tests {
             friction: 0.5,
             body: None,
             arm: Vec3::ZERO,
+            recover: 0.0,
         }
     }
 
@@ -237,6 +312,177 @@ mod tests {
             assert!(
                 (v - body_velocity.x).abs() < 0.01,
                 "{v} against {body_velocity}"
+            );
+        }
+    }
+
+    /// The middle 2 × 2 points of the sheet, under a crate's bottom.
+    const UNDER_THE_CRATE: [usize; 4] = [27, 28, 35, 36];
+
+    /// One step of the sheet lying on the ground with a crate of `mass` (a 0.2 m cube, its
+    /// centre 0.1 above the sheet's middle) resting on its middle 2 × 2 points, the crate
+    /// moving at `velocity` at the step's start; returns the crate's velocity after it (the
+    /// opposite of what the surface took, as the plugin gives it).
+    fn crate_on_the_sheet(solver: &mut Solver, mass: f32, velocity: Vec3) -> Vec3 {
+        on_the_ground(solver);
+        let centre: Vec3 = UNDER_THE_CRATE
+            .iter()
+            .map(|&i| solver.position(i))
+            .sum::<Vec3>()
+            / 4.0
+            + Vec3::Y * 0.1;
+        let free = velocity + Vec3::new(0.0, -9.81, 0.0) * DT;
+        let inertia = mass * 0.2 * 0.2 / 6.0;
+        let body = solver
+            .external
+            .add_body(StepBody {
+                linear: free,
+                angular: Vec3::ZERO,
+                guess_linear: free,
+                guess_angular: Vec3::ZERO,
+                inv_mass: glam::Mat3::IDENTITY / mass,
+                inv_inertia: glam::Mat3::IDENTITY / inertia,
+                key: 7,
+            })
+            .unwrap();
+        let first = solver.external.contacts().len();
+        for &i in &UNDER_THE_CRATE {
+            let at = solver.position(i) + Vec3::Y * 0.0;
+            let c = StepContact {
+                body: Some(body),
+                body_velocity: free,
+                arm: at - centre,
+                // The body's speed along the normal (−Y, from the crate to the point).
+                ..contact(i, -Vec3::Y, -free.y)
+            };
+            solver.add_contact(c).unwrap();
+        }
+        solver.step(DT).unwrap();
+        let took: Vec3 = solver.contact_impulses()[first..].iter().sum();
+        free - took / mass
+    }
+
+    #[test]
+    fn a_crate_on_a_sheet_on_the_ground_is_held_off_the_sheet_not_pressed_through_it() {
+        // A 5 kg crate landing at 2 m/s on a sheet of 0.1 kg points lying on the ground: the
+        // points it presses are held by the ground, so it stops on them (before issue 64
+        // a point took one contact, and the crate's pressed the sheet into the ground).
+        let mut solver = sheet(Integrator::ImplicitEuler, true);
+        let mut crate_velocity = crate_on_the_sheet(&mut solver, 5.0, Vec3::new(0.0, -2.0, 0.0));
+        assert!(
+            crate_velocity.length() < 1e-3,
+            "the crate stops on the sheet: {crate_velocity}"
+        );
+        // At rest on it for a second: the crate stays stopped, the ground carries both.
+        let weight = (CLOTH_MASS * solver.len() as f32 + 5.0) * 9.81;
+        for _ in 0..60 {
+            crate_velocity = crate_on_the_sheet(&mut solver, 5.0, crate_velocity);
+            assert!(crate_velocity.length() < 1e-3, "{crate_velocity}");
+            let ground: Vec3 = solver.contact_impulses()[..solver.len()].iter().sum();
+            assert!(
+                (ground.y / DT - weight).abs() < 1e-2 * weight,
+                "the ground carried {} N of {weight} N",
+                ground.y / DT
+            );
+        }
+        for i in 0..solver.len() {
+            assert!(solver.position(i).y.abs() < 1e-5, "{}", solver.position(i));
+            assert!(solver.velocity(i).length() < 1e-3, "{}", solver.velocity(i));
+        }
+    }
+
+    #[test]
+    fn an_overlap_is_moved_out_by_position_and_leaves_no_speed() {
+        // The sheet 1 cm into the ground, at rest, gravity off: each step moves it out by a
+        // fifth of what is left, its velocity stays zero (no kinetic energy from the
+        // overlap), whichever integrator steps it.
+        for integrator in [Integrator::ImplicitEuler, Integrator::SymplecticEuler] {
+            let mut solver = sheet(integrator, false);
+            for i in 0..solver.len() {
+                let p = solver.position(i);
+                solver.set_position(i, Vec3::new(p.x, -0.01, p.z)).unwrap();
+            }
+            let mut depth = 0.01_f32;
+            for _ in 0..5 {
+                solver.clear_external_forces();
+                for i in 0..solver.len() {
+                    let gap = solver.position(i).y;
+                    let c = StepContact {
+                        recover: 0.2 * -gap,
+                        ..contact(i, Vec3::Y, 0.0)
+                    };
+                    solver.add_contact(c).unwrap();
+                }
+                solver.step(DT).unwrap();
+                depth *= 0.8;
+                for i in 0..solver.len() {
+                    let (x, v) = (solver.position(i), solver.velocity(i));
+                    assert!((x.y + depth).abs() < 1e-6, "{integrator:?}: {x} at {depth}");
+                    assert_eq!(v, Vec3::ZERO, "{integrator:?}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn a_point_in_a_corner_is_held_along_both_walls() {
+        // The sheet falls on the ground; its middle 2 × 2 points are also pushed at
+        // 0.5 m/s by a heavy wall (a body the step moves, too heavy to slow), upright
+        // (along +X: the ground holds them) or leaning 45° (along (1, 1)/√2: it lifts them
+        // off the ground, which lets go).
+        for lean in [0.0_f32, 0.25 * std::f32::consts::PI] {
+            let mut solver = sheet(Integrator::ImplicitEuler, true);
+            on_the_ground(&mut solver);
+            let wall = Vec3::new(lean.cos(), lean.sin(), 0.0);
+            let body = solver
+                .external
+                .add_body(StepBody {
+                    linear: wall * 0.5,
+                    angular: Vec3::ZERO,
+                    guess_linear: wall * 0.5,
+                    guess_angular: Vec3::ZERO,
+                    inv_mass: glam::Mat3::ZERO,
+                    inv_inertia: glam::Mat3::ZERO,
+                    key: 3,
+                })
+                .unwrap();
+            let first = solver.external.contacts().len();
+            for &i in &UNDER_THE_CRATE {
+                let c = StepContact {
+                    body: Some(body),
+                    body_velocity: wall * 0.5,
+                    ..contact(i, wall, 0.5)
+                };
+                solver.add_contact(c).unwrap();
+            }
+            solver.step(DT).unwrap();
+            for &i in &UNDER_THE_CRATE {
+                let v = solver.velocity(i);
+                assert!(
+                    (v.dot(wall) - 0.5).abs() < 1e-4,
+                    "{lean}: pushed by the wall: {v}"
+                );
+                if lean == 0.0 {
+                    assert!(v.y.abs() < 1e-4, "held by the ground: {v}");
+                } else {
+                    assert!((v - wall * 0.5).length() < 1e-4, "lifted: {v}");
+                }
+            }
+            let ground: Vec3 = solver.contact_impulses()[..first].iter().sum();
+            let walls: Vec3 = solver.contact_impulses()[first..].iter().sum();
+            assert!(
+                ground.y > 0.0 && walls.dot(wall) > 0.0,
+                "{lean}: {ground} {walls}"
+            );
+            // The sheet's momentum is what the contacts and gravity gave it.
+            let momentum: Vec3 = (0..solver.len())
+                .map(|i| solver.velocity(i) * CLOTH_MASS)
+                .sum();
+            let gravity = Vec3::new(0.0, -9.81, 0.0) * DT * CLOTH_MASS * solver.len() as f32;
+            assert!(
+                (momentum - ground - walls - gravity).length() < 1e-3,
+                "{lean}: {momentum} against {}",
+                ground + walls + gravity
             );
         }
     }

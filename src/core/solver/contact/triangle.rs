@@ -94,16 +94,13 @@ pub struct StencilProximity {
 
 /// The impulse on the near side (each of its points `j` takes `weights[j]` times it; each
 /// of the far side's, `−weights[j]` times it) that keeps the sides from closing faster than
-/// the gap allows over `dt` (or pushes a share of an overlap out), with Coulomb friction;
+/// the gap allows over `dt` (overlapping, from closing at all: the overlap is for the
+/// caller to move out by position, [`recovery`](super::recovery)), with Coulomb friction;
 /// `None` when they do not touch this tick or nothing can move.
 pub fn stencil_impulse(p: &StencilProximity, dt: f32, params: &ContactParams) -> Option<Vec3> {
     let relative = p.near.velocity() - p.far.velocity();
     let normal_speed = relative.dot(p.normal);
-    let allowed = if p.gap >= 0.0 {
-        -p.gap / dt
-    } else {
-        params.depth_recovery * -p.gap / dt
-    };
+    let allowed = super::allowed_closing(p.gap, dt);
     if normal_speed >= allowed {
         return None;
     }

@@ -1,0 +1,242 @@
+//! Contact that holds (issue 64), tried as a game would: crates dropped on a cloth lying on
+//! the floor, crates stacked on it, a crate pinched between a ball of gas and the floor, a
+//! crate dropped on a scanned ball of gas. Each scene is measured tick by tick
+//! (`support/contact_scenes.rs`): the mechanical energy of crates and points, speeds, how
+//! low the points go and how close the crates come to the floor.
+#![cfg(feature = "rapier")]
+
+use bevy::prelude::*;
+
+#[path = "support/rapier_app.rs"]
+mod rapier_app;
+#[path = "support/contact_scenes.rs"]
+mod scenes;
+
+use scenes::{CRATE_SIDE, FLOOR_TOP, Scene};
+
+/// Ticks a second.
+const HZ: usize = 60;
+
+/// What a scene's crates and points did after they were dropped.
+struct Seen {
+    /// How far the energy rose above its value at the drop, J, and that value.
+    rise: f64,
+    start: f64,
+    /// Each crate's fastest speed, and the speed of its fall (what falling from its start
+    /// to the lowest it went gives).
+    crates: Vec<(f32, f32)>,
+    /// The fastest point and crate after 3 s.
+    points_late: f32,
+    crate_late: f32,
+    /// The lowest point's centre and the lowest crate corner above the floor, ever.
+    lowest_point: f32,
+    lowest_corner: f32,
+}
+
+impl Seen {
+    fn of(scene: &Scene) -> Self {
+        let (points_late, crate_late) = scene.fastest_after(3 * HZ);
+        let (lowest_point, lowest_corner) = scene.lowest_after(0);
+        Self {
+            rise: scene.energy_rise(0),
+            start: scene.ticks[0].energy,
+            crates: (0..scene.crates.len())
+                .map(|k| scene.crate_speeds(k, 0))
+                .collect(),
+            points_late,
+            crate_late,
+            lowest_point,
+            lowest_corner,
+        }
+    }
+
+    fn print(&self, what: &str) {
+        println!(
+            "{what}: energy rose {:.4} J over {:.3} J; crates fastest (of their fall) {:.3?} \
+             m/s; after 3 s points {:.4} m/s, crates {:.4} m/s; lowest point {:.4} m, lowest \
+             crate corner {:.4} m",
+            self.rise,
+            self.start,
+            self.crates,
+            self.points_late,
+            self.crate_late,
+            self.lowest_point,
+            self.lowest_corner
+        );
+    }
+
+    /// The acceptance's energy: never more than 1 % above its start, no crate faster than
+    /// 1.1 times its fall.
+    fn assert_no_energy_gained(&self, what: &str) {
+        assert!(
+            self.rise <= 0.01 * self.start,
+            "{what}: energy rose {}",
+            self.rise
+        );
+        for (k, (fastest, fall)) in self.crates.iter().enumerate() {
+            assert!(
+                *fastest <= 1.1 * fall,
+                "{what}: crate {k} at {fastest} of {fall}"
+            );
+        }
+    }
+}
+
+/// Crates of `masses` dropped from 1 m onto a 1.2 m cloth (350 simulation points) lying on
+/// the floor, stacked one above the other (a crate's side apart), measured for `seconds`
+/// after the drop; and the cloth's thickness.
+fn crates_on_cloth(masses: &[f32], seconds: usize) -> (Scene, f32) {
+    let mut scene = Scene::new();
+    let cloth = scene.cloth(1.2, 350);
+    scene.run(HZ);
+    let thickness = 2.0 * scene.mean_radius(cloth);
+    for (k, &mass) in masses.iter().enumerate() {
+        let above = FLOOR_TOP + thickness + 1.0 + (k as f32 + 0.5) * CRATE_SIDE * 1.5;
+        let at = Vec3::new(0.05, above, -0.03);
+        scene.drop_crate(at, Quat::from_rotation_y(0.3), mass);
+    }
+    scene.ticks.clear();
+    scene.run(seconds * HZ);
+    (scene, thickness)
+}
+
+#[test]
+fn crates_dropped_on_a_cloth_on_the_floor_come_to_rest_on_it() {
+    // Issue 64: a 1 kg crate still moved at 0.3 m/s and the cloth at 1.2 m/s after 4 s; a
+    // 5 kg crate pressed the cloth 3 cm into the floor and reached the floor through it.
+    // Now the crate is held off the points the floor holds (a pinch). Measured 2026-12-07:
+    // 1 kg: 0.0002 m/s after 3 s, energy never above its start, its lowest corner 0.0687 m
+    // up over a 0.0752 m thick cloth; 5 kg: at rest, 0.0821 m.
+    for mass in [1.0, 5.0] {
+        let (scene, thickness) = crates_on_cloth(&[mass], 10);
+        let seen = Seen::of(&scene);
+        let what = format!("a {mass} kg crate on a cloth");
+        seen.print(&what);
+        seen.assert_no_energy_gained(&what);
+        assert!(seen.crate_late < 0.01, "{what}: {}", seen.crate_late);
+        assert!(seen.points_late < 0.01, "{what}: {}", seen.points_late);
+        assert!(
+            seen.lowest_point > FLOOR_TOP,
+            "{what}: {}",
+            seen.lowest_point
+        );
+        // Contacts are the points' spheres: a corner over the gap between two of them
+        // dips into the cloth's thickness by a few millimetres, never through it.
+        assert!(
+            seen.lowest_corner > 0.85 * thickness,
+            "{what}: {} of {thickness}",
+            seen.lowest_corner
+        );
+    }
+}
+
+#[test]
+#[ignore = "fails today: a crate landing on one on the cloth presses it through (issue 64, item 2)"]
+fn three_crates_stacked_on_a_cloth_stay_stacked() {
+    // Measured 2026-12-07: rapier's impulse between two crates comes after the surface's
+    // step, so the lower crate is pressed into the cloth a tick late, reaches the floor
+    // through it, and the points squeezed out under it gain 28 J in a tick (11.7 m/s); the
+    // stack falls. A dynamic body solved in the surface's step with the bodies it touches
+    // (item 2) is what holds it.
+    let (scene, thickness) = crates_on_cloth(&[1.0, 1.0, 1.0], 10);
+    let seen = Seen::of(&scene);
+    seen.print("three crates stacked on a cloth");
+    seen.assert_no_energy_gained("three crates stacked on a cloth");
+    let last = scene.ticks.last().unwrap();
+    println!("the crates' heights at the end: {:.3?}", last.crate_height);
+    // Each on the one below: a crate's side apart, the lowest on the cloth.
+    for k in 0..3 {
+        let expected = FLOOR_TOP + thickness + (k as f32 + 0.5) * CRATE_SIDE;
+        assert!(
+            (last.crate_height[k] - expected).abs() < 0.02,
+            "crate {k} at {} instead of {expected}",
+            last.crate_height[k]
+        );
+    }
+    // At rest within 2 s.
+    let still = scene.ticks[2 * HZ..]
+        .iter()
+        .map(|t| t.crate_speed.iter().copied().fold(0.0, f32::max))
+        .fold(0.0, f32::max);
+    assert!(still < 0.01, "{still}");
+}
+
+/// A 1 kg crate dropped, its bottom `height` above `2·radius` over the floor and `x` to the
+/// side of the middle of the ball (of that radius) that `spawn` makes, after the ball has
+/// settled on the floor for 2 s; the scene after `seconds` more, measured from the drop.
+fn crate_on_ball(
+    spawn: impl FnOnce(&mut Scene) -> Entity,
+    (radius, x, height): (f32, f32, f32),
+    seconds: usize,
+) -> Scene {
+    let at = Vec3::new(x, FLOOR_TOP + 2.0 * radius + height + 0.5 * CRATE_SIDE, 0.0);
+    let mut scene = Scene::new();
+    spawn(&mut scene);
+    scene.run(2 * HZ);
+    scene.drop_crate(at, Quat::IDENTITY, 1.0);
+    scene.ticks.clear();
+    scene.run(seconds * HZ);
+    scene
+}
+
+/// A crate of 1 kg dropped from `height` above the top of a ball of gas (radius 0.5, the
+/// playground's material) lying on the floor, 0.45 m to its side: it slides down the ball
+/// into the gap between it and the floor.
+fn crate_pinched(height: f32, seconds: usize) -> Seen {
+    let radius = 0.5;
+    let scene = crate_on_ball(
+        |scene| scene.gas_ball(0.0, 0.02, radius),
+        (radius, 0.45, height),
+        seconds,
+    );
+    let seen = Seen::of(&scene);
+    let points = scene.fastest_after(0).0;
+    println!("points fastest {points:.3} m/s");
+    seen.print(&format!("a crate pinched from {height} m"));
+    assert!(
+        points < 2.0 * seen.crates[0].1,
+        "a point at {points} m/s, twice the crate's fall {}",
+        seen.crates[0].1
+    );
+    seen
+}
+
+#[test]
+fn a_crate_pinched_between_a_ball_of_gas_and_the_floor_is_not_launched() {
+    // Issue 64: at two drop heights of seven the scan's points reached 350–880 m/s and the
+    // crate was shot away at ~400 m/s.
+    for height in [0.2, 1.0] {
+        let seen = crate_pinched(height, 5);
+        let what = format!("a crate pinched from {height} m");
+        seen.assert_no_energy_gained(&what);
+        let (fastest, fall) = seen.crates[0];
+        assert!(fastest <= fall, "{what}: the crate at {fastest} of {fall}");
+    }
+}
+
+/// A crate of 1 kg dropped from `height` above the top of CGAL's scanned sphere (radius
+/// 0.5, filled with gas) lying on the floor.
+fn crate_on_scan(height: f32, seconds: usize) -> Seen {
+    let radius = 0.5;
+    let scene = crate_on_ball(
+        |scene| scene.scan_ball(0.02, radius),
+        (radius, 0.0, height),
+        seconds,
+    );
+    let seen = Seen::of(&scene);
+    seen.print(&format!(
+        "a crate dropped on a scanned ball from {height} m"
+    ));
+    seen
+}
+
+#[test]
+#[ignore = "fails today: a crate sunk in a soft ball spins up and rolls off (issue 64, item 2)"]
+fn a_crate_dropped_on_a_scanned_ball_of_gas_comes_to_rest() {
+    // Measured 2026-12-07: the crate sinks 0.3 m into the ball, turns ever faster (7 rad/s
+    // after 3 s) as the step's rounds solve its spin with the surface, and falls off; the
+    // ball moves at 1.8 m/s after 3 s. Energy never rose.
+    let seen = crate_on_scan(0.5, 10);
+    seen.assert_no_energy_gained("a crate on a scanned ball");
+    assert!(seen.crate_late < 0.01 && seen.points_late < 0.01);
+}
