@@ -21,8 +21,12 @@ use bevy_point_springs::plugin::{
 use bevy_point_springs::prelude::*;
 use bevy_rapier3d::prelude::*;
 
+#[allow(dead_code)] // the helpers of other test files
+#[path = "support/plugin_app.rs"]
+mod plugin_app;
 #[path = "support/rapier_app.rs"]
 mod rapier_app;
+use plugin_app::momentum;
 use rapier_app::{TICK, pin};
 
 /// Upper bound on waiting for preparation (a hang guard, not a speed check).
@@ -179,6 +183,63 @@ fn a_ball_dropped_on_the_hat_slows_dents_it_and_both_take_the_same_impulse() {
         matches!(mode, TimestepMode::Fixed { dt, .. } if (dt - TICK.as_secs_f32()).abs() < 1e-7),
         "{mode:?}"
     );
+}
+
+#[test]
+fn a_ball_thrown_at_a_floating_sheet_keeps_their_momentum() {
+    // Nothing else acts (no gravity, no drag, nothing pinned): the ball's momentum and the
+    // sheet's, each measured from Σ m·v, add up to what they were, and the sheet gained
+    // what it reports (review F8: the ball's Δp against the report alone cannot fail, as
+    // the plugin gives the ball exactly the opposite of the report).
+    let mut app = create_app(Vec3::ZERO);
+    let config = SurfaceConfig {
+        simplify: SimplifyConfig::target(200),
+        solver: SolverConfig {
+            gravity: Vec3::ZERO,
+            drag: 0.0,
+            ..default()
+        },
+        ..default()
+    };
+    let sheet = app
+        .world_mut()
+        .spawn(DeformableSurface::cloud(
+            shapes::square_sheet(1.0, 0.02),
+            config,
+        ))
+        .id();
+    settle(&mut app, sheet);
+    let ball = app
+        .world_mut()
+        .spawn(ball(
+            Vec3::new(0.1, 0.05, 0.4),
+            0.1,
+            100.0,
+            Vec3::new(0.0, 0.0, -3.0),
+        ))
+        .id();
+    app.update();
+    let mass = app.world().get::<ReadMassProperties>(ball).unwrap().mass;
+    let before = (velocity(&app, ball) * mass, momentum(&app, sheet));
+    for _ in 0..60 {
+        app.update();
+    }
+    let on_ball = velocity(&app, ball) * mass - before.0;
+    let on_sheet = momentum(&app, sheet) - before.1;
+    let reported = app
+        .world()
+        .get::<SurfaceContacts>(sheet)
+        .unwrap()
+        .total_impulse;
+    println!("ball {mass:.3} kg: Δp {on_ball:.4}; sheet: Δp {on_sheet:.4}, reported {reported:.4}");
+    assert!(
+        on_sheet.z < -0.3 * mass * 3.0,
+        "the sheet was hit: {on_sheet}"
+    );
+    let lost = (on_ball + on_sheet).length() / on_sheet.length();
+    assert!(lost < 0.01, "momentum off by {:.3}%", 100.0 * lost);
+    let told = (on_sheet - reported).length() / on_sheet.length();
+    assert!(told < 0.01, "the report off by {:.3}%", 100.0 * told);
 }
 
 #[test]

@@ -345,7 +345,9 @@ fn explicit_euler_energy_grows_without_damping_and_the_guard_acts() {
     let (mut steps, mut grew) = (0, false);
     while s.diagnostics().guard_trips == 0 && steps < 100_000 {
         let r = s.step(dt).unwrap();
-        assert!(r.finite);
+        // `finite` is always true with the guard on; what it did is `recovered`.
+        assert_eq!(r.recovered, s.diagnostics().guard_trips > 0, "{r:?}");
+        assert!(!r.recovered || r.instability.is_some(), "{r:?}");
         grew |= s.energy().total() > 2.0 * e0;
         steps += 1;
     }
@@ -455,7 +457,8 @@ mod random_networks {
                 let r = s.step(dt).unwrap();
                 // Strong damping on light points can ask for more than the sub-step cap; the
                 // report then says the step was limited, and only the guard's promise holds.
-                prop_assert!(r.finite, "{:?}", r);
+                // (`finite` is always true with the guard on: what counts is that the
+                // step needed no guard.)
                 prop_assert!(r.limited || !r.recovered, "{:?} {:?}", r, s.stability());
             }
             prop_assert!(s.energy().total().is_finite());
@@ -685,7 +688,8 @@ fn a_light_body_carrying_a_cloth_is_solved_with_it() {
                 }
             }
             let report = s.step(h).unwrap();
-            assert!(report.finite);
+            // Solved with the cloth, no step needs the guard (the late pull's may).
+            assert!(!solved || !report.recovered, "{report:?}");
             let held: Vec3 = s.pin_impulses().iter().sum();
             velocity = free - held / BODY_MASS;
             centre += velocity * h;

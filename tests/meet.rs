@@ -14,7 +14,7 @@ use bevy_point_springs::prelude::*;
 #[allow(dead_code)] // the helpers of other test files
 #[path = "support/plugin_app.rs"]
 mod plugin_app;
-use plugin_app::{TICK, assets_dir, create_app_with, hold, settle};
+use plugin_app::{TICK, assets_dir, create_app_with, hold, momentum, settle};
 
 fn create_app() -> App {
     create_app_with(&assets_dir(), TICK, |app| {
@@ -75,14 +75,29 @@ fn inside(points: &[Vec3], other: &[Vec3]) -> f32 {
         .fold(0.0, f32::max)
 }
 
-/// Two balls of radius 0.5 thrown at each other at 2 m/s each, with and without meeting.
-/// Returns the closest the centres came, the deepest any point of one went inside the
-/// other ([`inside`]), and each ball's total impulse from the other.
-fn throw_two_balls(meet: bool) -> (f32, f32, Vec3, Vec3) {
+/// What [`throw_two_balls`] saw.
+struct Thrown {
+    /// The closest the centres came.
+    closest: f32,
+    /// The deepest any point of one went inside the other ([`inside`]).
+    deepest: f32,
+    /// Each ball's total impulse from the other, as reported.
+    reported: (Vec3, Vec3),
+    /// Each ball's change of momentum, measured (Σ m·v of its points).
+    measured: (Vec3, Vec3),
+}
+
+/// Two balls of radius 0.5 thrown at each other along x, one at `va` m/s and the other at
+/// `vb` m/s, with air drag or without, with and without meeting.
+fn throw_two_balls(meet: bool, (va, vb): (f32, f32), drag: bool) -> Thrown {
     let mut app = create_app();
     let ball = |x: f32| {
+        let mut config = config(250, Vec3::ZERO);
+        if !drag {
+            config.solver.drag = 0.0;
+        }
         (
-            DeformableSurface::cloud(shapes::fibonacci_sphere(1500, 0.5), config(250, Vec3::ZERO)),
+            DeformableSurface::cloud(shapes::fibonacci_sphere(1500, 0.5), config),
             Transform::from_xyz(x, 0.0, 0.0),
         )
     };
@@ -96,8 +111,9 @@ fn throw_two_balls(meet: bool) -> (f32, f32, Vec3, Vec3) {
         }
     }
     settle(&mut app, &[a, b]);
-    set_velocity(&mut app, a, Vec3::X * 2.0);
-    set_velocity(&mut app, b, Vec3::NEG_X * 2.0);
+    set_velocity(&mut app, a, Vec3::X * va);
+    set_velocity(&mut app, b, Vec3::X * vb);
+    let before = (momentum(&app, a), momentum(&app, b));
     let (mut closest, mut deepest) = (f32::MAX, 0.0_f32);
     for _ in 0..64 {
         app.update();
@@ -111,29 +127,45 @@ fn throw_two_balls(meet: bool) -> (f32, f32, Vec3, Vec3) {
             .get::<SurfaceMeetingReport>(e)
             .map_or(Vec3::ZERO, SurfaceMeetingReport::total_impulse)
     };
-    (closest, deepest, total(a), total(b))
+    Thrown {
+        closest,
+        deepest,
+        reported: (total(a), total(b)),
+        measured: (momentum(&app, a) - before.0, momentum(&app, b) - before.1),
+    }
 }
 
 #[test]
 fn two_balls_thrown_at_each_other_bounce_and_exchange_equal_impulses() {
-    let (closest, deepest, ja, jb) = throw_two_balls(true);
-    let (closest_apart, deepest_apart, ..) = throw_two_balls(false);
+    let met = throw_two_balls(true, (2.0, -2.0), true);
+    let apart = throw_two_balls(false, (2.0, -2.0), true);
+    // Without drag (nothing else acts), seen from a frame moving at 1 m/s along −x: one
+    // ball at 1 m/s, the other at 3 m/s. Neither the reports nor the momenta are equal and
+    // opposite by symmetry here.
+    let moving = throw_two_balls(true, (1.0, -3.0), false);
+    let (ja, jb) = moving.reported;
+    let (pa, pb) = moving.measured;
     println!(
-        "meeting: centres closest {closest:.3} m, deepest point inside the other {deepest:.3} m, \
-         impulses {ja:.4} and {jb:.4} N·s; passing through: closest {closest_apart:.3}, deepest \
-         {deepest_apart:.3}"
+        "meeting: centres closest {:.3} m, deepest point inside the other {:.3} m; passing \
+         through: closest {:.3}, deepest {:.3}; at 1 and 3 m/s: closest {:.3}, deepest \
+         {:.3}, impulses reported {ja:.4} and {jb:.4} N·s, measured {pa:.4} and {pb:.4}",
+        met.closest, met.deepest, apart.closest, apart.deepest, moving.closest, moving.deepest
     );
     // Without meeting they pass through each other (the test can fail).
-    assert!(closest_apart < 0.1 && deepest_apart > 0.4);
+    assert!(apart.closest < 0.1 && apart.deepest > 0.4);
     // Meeting: the balls stop each other before their centres come within a radius, and
-    // no point gets 0.08 inside the other ball (about two thirds of a spacing; measured
-    // 0.049).
-    assert!(closest > 0.5, "{closest}");
-    assert!(deepest < 0.08, "{deepest}");
-    // Equal and opposite, to f32 rounding, and enough to turn them round: each ball
-    // (about 3.1 kg at 1 kg/m²) came in at 2 m/s.
-    assert!((ja + jb).length() <= 1e-4 * ja.length(), "{ja} {jb}");
-    assert!(ja.x < -3.0, "{ja}");
+    // no point gets 0.08 inside the other ball (about two thirds of a spacing; without the
+    // drag that slows them before they meet, 0.11).
+    assert!(met.closest > 0.5, "{}", met.closest);
+    assert!(met.deepest < 0.08, "{}", met.deepest);
+    assert!(moving.closest > 0.5, "{}", moving.closest);
+    // Momentum, measured from Σ m·v: nothing else acts on the balls, so what one gained
+    // the other lost, and each gained what was reported. Each ball (about 3.1 kg at
+    // 1 kg/m²) came in at 2 m/s relative to their centre: enough to turn them round.
+    assert!((pa + pb).length() <= 0.01 * pa.length(), "{pa} {pb}");
+    assert!((pa - ja).length() <= 0.01 * pa.length(), "{pa} {ja}");
+    assert!((pb - jb).length() <= 0.01 * pb.length(), "{pb} {jb}");
+    assert!(pa.x < -3.0, "{pa}");
 }
 
 /// The gas pressure inside the head (as the playground's sphere).

@@ -15,7 +15,7 @@ use bevy_point_springs::core::cloud::shapes;
 use bevy_point_springs::core::network::SpringNetwork;
 use bevy_point_springs::core::pipeline::SurfaceConfig;
 use bevy_point_springs::core::simplify::SimplifyConfig;
-use bevy_point_springs::plugin::SurfaceNetwork;
+use bevy_point_springs::plugin::{SurfaceMasses, SurfaceNetwork};
 use bevy_point_springs::prelude::*;
 
 /// Fixed tick of the tests that do not follow a scene.
@@ -87,6 +87,17 @@ pub fn floating(points: usize, sim: usize) -> DeformableSurface {
         ..default()
     };
     DeformableSurface::cloud(shapes::fibonacci_sphere(points, 1.0), config)
+}
+
+/// Σ m·v of `e`'s simulation points in world coordinates: measured, not reported.
+#[allow(dead_code)] // `tests/meet.rs` and `tests/contact.rs` use it
+pub fn momentum(app: &App, e: Entity) -> Vec3 {
+    let place = app.world().get::<GlobalTransform>(e).unwrap();
+    let masses = app.world().get::<SurfaceMasses>(e).unwrap();
+    let points = app.world().get::<SimulationPoints>(e).unwrap();
+    (0..points.len())
+        .map(|i| masses.mass(i) * place.affine().transform_vector3(points.velocity(i)))
+        .sum()
 }
 
 pub fn centroid(points: &SimulationPoints) -> Vec3 {
