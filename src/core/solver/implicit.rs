@@ -476,7 +476,12 @@ impl Stepper {
             let x = points.x.get(i) + points.v.get(i) * hf;
             points.x.set(i, x);
         }
-        contacts.recover(points, &mut self.body_moves);
+        contacts.recover(
+            points,
+            model.masses,
+            &mut self.contact_impulses,
+            &mut self.body_moves,
+        );
         self.implicit = scratch;
         outcome
     }

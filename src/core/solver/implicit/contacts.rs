@@ -5,9 +5,9 @@
 use glam::{DMat3, DVec3, Vec3};
 
 use super::{CgOutcome, ExternalForces, PointState, Scratch, System, iterate, outer};
-use crate::core::solver::SolverConfig;
 use crate::core::solver::contact::{StepBody, StepContact, step};
 use crate::core::solver::stepper::StepParts;
+use crate::core::solver::{Masses, SolverConfig};
 
 mod pinch;
 
@@ -599,8 +599,16 @@ impl<'a> Contacts<'a> {
     /// (a share of it, [`StepContact::recover`]) and not as kinetic energy. A pinch moves
     /// its body instead (its point cannot give way): each body's translation out of its
     /// pinches is found by Gauss–Seidel passes and written to `moves` (one per body, the
-    /// surface's coordinates).
-    pub(super) fn recover(&self, points: &mut PointState, moves: &mut [Vec3]) {
+    /// surface's coordinates). The speed a point gives back comes off its contact's impulse
+    /// in `impulses` (its mass times it), so a body given the opposite of the impulse takes
+    /// no speed from the overlap either: momentum stays what the points measure.
+    pub(super) fn recover(
+        &self,
+        points: &mut PointState,
+        masses: &Masses,
+        impulses: &mut [Vec3],
+        moves: &mut [Vec3],
+    ) {
         let mut pinched = Vec::new();
         for k in 0..self.kept.len() {
             let c = &self.contacts[self.kept[k]];
@@ -616,6 +624,9 @@ impl<'a> Contacts<'a> {
                 let leaving = (points.v.get(i) - body).dot(c.normal);
                 let back = leaving.min(self.recovery_speed(c) as f32).max(0.0);
                 points.v.set(i, points.v.get(i) - c.normal * back);
+                if let Some(out) = impulses.get_mut(self.kept[k]) {
+                    *out -= c.normal * (back * masses.mass(i));
+                }
             }
         }
         for _ in 0..PINCH_MOVE_PASSES {
