@@ -216,6 +216,26 @@ fn a_hundred_sleeping_surfaces_cost_nothing_and_a_grab_wakes_one() {
     assert!(!asleep(&app, still[7]));
     assert_eq!(work(&app, still[7]).steps, steps + 1);
     assert!(asleep(&app, still[8]));
+    // So does a change of its solver settings: given gravity, a sleeping one falls.
+    let mut stepper = app.world_mut().get_mut::<SurfaceStepper>(still[9]).unwrap();
+    let config = SolverConfig {
+        gravity: Vec3::new(0.0, -9.81, 0.0),
+        ..*stepper.config()
+    };
+    stepper.set_config(config).unwrap();
+    let steps = work(&app, still[9]).steps;
+    for _ in 0..10 {
+        app.update();
+    }
+    assert!(!asleep(&app, still[9]));
+    assert_eq!(work(&app, still[9]).steps, steps + 10);
+    let speed = app
+        .world()
+        .get::<SimulationPoints>(still[9])
+        .unwrap()
+        .max_speed();
+    assert!(speed > 0.5, "{speed}");
+    assert!(asleep(&app, still[10]));
 }
 
 /// Updates until `n` modelling outcomes came (bakes and exports finish in the background),

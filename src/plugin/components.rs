@@ -299,7 +299,7 @@ impl Default for SleepSettings {
 /// Whether a surface sleeps. A sleeping surface costs nothing per tick: no forces, no step,
 /// no transfer, no upload. It wakes on the tick something acts on it: a grab or any other
 /// anchor, a force from the game or a contact in [`SurfaceForces`], or a change of its
-/// material or settings.
+/// material, its run settings or its solver settings ([`SurfaceStepper::set_config`]).
 #[derive(Component, Debug, Clone, Copy, PartialEq, Default, Reflect)]
 #[reflect(Component, Debug, Default)]
 pub struct SurfaceSleep {
@@ -416,15 +416,20 @@ pub struct SurfacePressure(pub Pressure);
 
 /// The integrator's settings, force buffers and running totals. Read them through
 /// [`Stepper`]'s methods; change the settings with [`SurfaceStepper::set_config`] (the
-/// force buffers and totals are the plugin's).
+/// force buffers and totals are the plugin's). The second field is set when the settings
+/// changed, so that a sleeping surface wakes on the next tick.
 #[derive(Component, Debug, Clone, Default, Deref)]
-pub struct SurfaceStepper(pub(crate) Stepper);
+pub struct SurfaceStepper(#[deref] pub(crate) Stepper, pub(crate) bool);
 
 impl SurfaceStepper {
     /// Changes the solver settings (integrator, gravity, drag, sub-steps, …) from the next
-    /// step on; refused, with nothing changed, when they do not validate.
+    /// step on, and wakes the surface if it sleeps; refused, with nothing changed, when they
+    /// do not validate.
     pub fn set_config(&mut self, config: SolverConfig) -> Result<(), SolverError> {
-        self.0.set_config(config)
+        let before = *self.0.config();
+        self.0.set_config(config)?;
+        self.1 |= *self.0.config() != before;
+        Ok(())
     }
 }
 

@@ -523,7 +523,7 @@ fn insert_simulation(entity: &mut EntityCommands, prepared: Prepared) {
         SurfaceSprings(solver.springs),
         SurfaceAnchors(solver.anchors),
         SurfaceForces(ExternalForces::zeros(points)),
-        SurfaceStepper(solver.stepper),
+        SurfaceStepper(solver.stepper, false),
         SurfaceMaterial(config.material),
         SurfaceNetwork(Arc::new(network)),
         DenseSurface(dense),

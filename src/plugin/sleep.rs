@@ -10,7 +10,7 @@ use bevy::prelude::*;
 
 use super::components::{
     SceneTimeline, SimulationPoints, StepOnce, SurfaceAnchors, SurfaceForces, SurfaceMaterial,
-    SurfaceRunSettings, SurfaceSleep, SurfaceStatus,
+    SurfaceRunSettings, SurfaceSleep, SurfaceStatus, SurfaceStepper,
 };
 
 /// What [`wake_surfaces`] reads of a surface to tell whether something acted on it.
@@ -20,16 +20,19 @@ type WakeParts = (
     &'static SurfaceAnchors,
     Ref<'static, SurfaceMaterial>,
     Ref<'static, SurfaceRunSettings>,
+    &'static mut SurfaceStepper,
     Has<StepOnce>,
 );
 
-/// A surface acted on this tick (a force, an anchor, a changed material or settings, a
-/// single step asked for) is awake, and its stillness starts again.
+/// A surface acted on this tick (a force, an anchor, a changed material, run settings or
+/// solver settings, a single step asked for) is awake, and its stillness starts again.
 pub(crate) fn wake_surfaces(mut surfaces: Query<WakeParts>) {
-    for (mut sleep, forces, anchors, material, settings, step_once) in &mut surfaces {
+    for (mut sleep, forces, anchors, material, settings, mut stepper, step_once) in &mut surfaces {
+        let solver_changed = std::mem::take(&mut stepper.bypass_change_detection().1);
         let acted = !anchors.is_empty()
             || material.is_changed()
             || settings.is_changed()
+            || solver_changed
             || step_once
             || !forces.is_zero();
         if acted {

@@ -76,6 +76,21 @@ pub fn settle(app: &mut App, surfaces: &[Entity]) {
     }
 }
 
+/// [`settle`], with every surface paused until all are ready: none steps while another
+/// prepares (for as many ticks as that happens to take), so that each run begins alike.
+#[allow(dead_code)] // not every test file that includes this uses it
+pub fn settle_together(app: &mut App, surfaces: &[Entity]) {
+    let pause = |app: &mut App, paused: bool| {
+        for &e in surfaces {
+            let mut settings = app.world_mut().get_mut::<SurfaceRunSettings>(e).unwrap();
+            settings.paused = paused;
+        }
+    };
+    pause(app, true);
+    settle(app, surfaces);
+    pause(app, false);
+}
+
 /// A floating surface (no gravity) from a cloud in memory.
 pub fn floating(points: usize, sim: usize) -> DeformableSurface {
     let config = SurfaceConfig {
