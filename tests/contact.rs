@@ -185,12 +185,11 @@ fn a_ball_dropped_on_the_hat_slows_dents_it_and_both_take_the_same_impulse() {
     );
 }
 
-#[test]
-fn a_ball_thrown_at_a_floating_sheet_keeps_their_momentum() {
-    // Nothing else acts (no gravity, no drag, nothing pinned): the ball's momentum and the
-    // sheet's, each measured from Σ m·v, add up to what they were, and the sheet gained
-    // what it reports (review F8: the ball's Δp against the report alone cannot fail, as
-    // the plugin gives the ball exactly the opposite of the report).
+/// A floating 1 m sheet (200 simulation points; no gravity, no drag, nothing pinned), and
+/// a rapier ball (0.1 m, 100 kg/m³) at `at` moving at `speed`, one tick after the ball
+/// came. Returns the app, the sheet, the ball, its mass and the momenta (ball, sheet) then,
+/// each measured from Σ m·v.
+fn sheet_and_ball(at: Vec3, speed: Vec3) -> (App, Entity, Entity, f32, (Vec3, Vec3)) {
     let mut app = create_app(Vec3::ZERO);
     let config = SurfaceConfig {
         simplify: SimplifyConfig::target(200),
@@ -209,18 +208,21 @@ fn a_ball_thrown_at_a_floating_sheet_keeps_their_momentum() {
         ))
         .id();
     settle(&mut app, sheet);
-    let ball = app
-        .world_mut()
-        .spawn(ball(
-            Vec3::new(0.1, 0.05, 0.4),
-            0.1,
-            100.0,
-            Vec3::new(0.0, 0.0, -3.0),
-        ))
-        .id();
+    let ball = app.world_mut().spawn(ball(at, 0.1, 100.0, speed)).id();
     app.update();
     let mass = app.world().get::<ReadMassProperties>(ball).unwrap().mass;
     let before = (velocity(&app, ball) * mass, momentum(&app, sheet));
+    (app, sheet, ball, mass, before)
+}
+
+#[test]
+fn a_ball_thrown_at_a_floating_sheet_keeps_their_momentum() {
+    // Nothing else acts (no gravity, no drag, nothing pinned): the ball's momentum and the
+    // sheet's, each measured from Σ m·v, add up to what they were, and the sheet gained
+    // what it reports (review F8: the ball's Δp against the report alone cannot fail, as
+    // the plugin gives the ball exactly the opposite of the report).
+    let (mut app, sheet, ball, mass, before) =
+        sheet_and_ball(Vec3::new(0.1, 0.05, 0.4), Vec3::new(0.0, 0.0, -3.0));
     for _ in 0..60 {
         app.update();
     }
@@ -248,31 +250,8 @@ fn a_ball_placed_in_a_floating_sheet_is_moved_out_not_thrown() {
     // speed they left at, and their contacts' impulses with it, so the ball (given the
     // opposite of the impulses) and the sheet together keep their momentum, measured from
     // Σ m·v (none).
-    let mut app = create_app(Vec3::ZERO);
-    let config = SurfaceConfig {
-        simplify: SimplifyConfig::target(200),
-        solver: SolverConfig {
-            gravity: Vec3::ZERO,
-            drag: 0.0,
-            ..default()
-        },
-        ..default()
-    };
-    let sheet = app
-        .world_mut()
-        .spawn(DeformableSurface::cloud(
-            shapes::square_sheet(1.0, 0.02),
-            config,
-        ))
-        .id();
-    settle(&mut app, sheet);
-    let ball = app
-        .world_mut()
-        .spawn(ball(Vec3::new(0.1, 0.05, 0.08), 0.1, 100.0, Vec3::ZERO))
-        .id();
-    app.update();
-    let mass = app.world().get::<ReadMassProperties>(ball).unwrap().mass;
-    let before = (velocity(&app, ball) * mass, momentum(&app, sheet));
+    let (mut app, sheet, ball, mass, before) =
+        sheet_and_ball(Vec3::new(0.1, 0.05, 0.08), Vec3::ZERO);
     let mut fastest = 0.0_f32;
     for _ in 0..60 {
         app.update();
