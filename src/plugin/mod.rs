@@ -74,7 +74,8 @@ pub use components::{
 };
 #[cfg(feature = "rapier")]
 pub use contact::{
-    ContactDiagnostics, ContactSolve, SurfaceContact, SurfaceContactPlugin, SurfaceContacts,
+    BodySupports, ContactDiagnostics, ContactSolve, SurfaceContact, SurfaceContactPlugin,
+    SurfaceContacts,
 };
 pub use grab::{GrabMessage, GrabSettings, Grabs};
 pub use health::{STABLE_STEPS_TO_RECOVER, SurfaceHealth, SurfaceUnstable};

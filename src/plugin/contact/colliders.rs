@@ -7,6 +7,8 @@ use bevy_rapier3d::prelude::RapierContextMut;
 use bevy_rapier3d::rapier::dynamics::RigidBodyHandle;
 use bevy_rapier3d::rapier::geometry::{ColliderHandle, InteractionGroups};
 
+use super::BodySupports;
+
 /// A collider as the contacts of one tick see it.
 pub(super) struct NearCollider {
     pub(super) handle: ColliderHandle,
@@ -18,14 +20,19 @@ pub(super) struct NearCollider {
     groups: InteractionGroups,
 }
 
-/// Rapier's colliders this tick: sensors and disabled ones left out, bounds swept.
-pub(super) fn list_colliders(context: &RapierContextMut<'_>, dt: f32) -> Vec<NearCollider> {
+/// Rapier's colliders this tick: sensors, disabled ones and the surfaces' own held points
+/// ([`BodySupports`]) left out, bounds swept.
+pub(super) fn list_colliders(
+    context: &RapierContextMut<'_>,
+    supports: &BodySupports,
+    dt: f32,
+) -> Vec<NearCollider> {
     let bodies = &context.rigidbody_set.bodies;
     context
         .colliders
         .colliders
         .iter()
-        .filter(|(_, c)| c.is_enabled() && !c.is_sensor())
+        .filter(|(h, c)| c.is_enabled() && !c.is_sensor() && !supports.is_support(*h))
         .map(|(handle, c)| {
             let aabb = c.compute_aabb();
             let (min, max) = (aabb.mins, aabb.maxs);

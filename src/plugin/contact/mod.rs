@@ -58,6 +58,7 @@
 mod attached;
 mod bodies;
 mod colliders;
+mod support;
 mod surface;
 mod system;
 mod touch;
@@ -78,6 +79,7 @@ use crate::core::solver::contact::{
 use super::PointSpringsSystems;
 use super::meet::PointRadii;
 
+pub use support::BodySupports;
 pub use system::surface_contacts;
 
 /// Contacts between rapier's colliders and deformable surfaces.
@@ -110,6 +112,7 @@ impl Plugin for SurfaceContactPlugin {
             .register_type::<ContactSolve>()
             .register_type::<SurfaceContacts>()
             .init_resource::<ContactDiagnostics>()
+            .init_resource::<BodySupports>()
             .add_systems(
                 self.schedule,
                 (
@@ -118,6 +121,10 @@ impl Plugin for SurfaceContactPlugin {
                         .in_set(PointSpringsSystems::Forces)
                         .after(super::simulate::accumulate_forces)
                         .after(PhysicsSet::SyncBackend)
+                        .before(PhysicsSet::StepSimulation),
+                    support::support_bodies
+                        .after(PointSpringsSystems::Integrate)
+                        .before(system::record_step_contacts)
                         .before(PhysicsSet::StepSimulation),
                     system::record_step_contacts
                         .after(PointSpringsSystems::Integrate)
@@ -212,10 +219,13 @@ pub struct SurfaceContacts {
     /// The points' sphere radii, in the surface's coordinates.
     #[reflect(ignore)]
     radii: PointRadii,
-    /// For each contact handed to the step this tick: its dynamic body, if it has one, and
-    /// where it touches it (world coordinates).
+    /// For each contact handed to the step this tick: what it joins.
     #[reflect(ignore)]
-    links: Vec<(Option<RigidBodyHandle>, Vec3)>,
+    links: Vec<Link>,
+    /// The points near a dynamic body this tick (sorted): those a fixed collider holds are
+    /// shown to rapier ([`support`]).
+    #[reflect(ignore)]
+    pub(super) near_bodies: Vec<u32>,
     /// The dynamic bodies handed to the step this tick: each one's index among the step's
     /// bodies, and its handle.
     #[reflect(ignore)]
@@ -236,7 +246,35 @@ pub struct SurfaceContacts {
     links_from: usize,
 }
 
+/// A contact handed to a surface's step, as the plugin keeps it.
+#[derive(Debug, Clone, Copy)]
+struct Link {
+    /// Its dynamic body, if it has one.
+    body: Option<RigidBodyHandle>,
+    /// Where it touches the body (world coordinates).
+    at: Vec3,
+    /// The simulation point.
+    point: u32,
+    /// Whether what it touches stands still (a fixed collider, or a body at rest).
+    still: bool,
+}
+
 impl SurfaceContacts {
+    /// The points near a dynamic body that a still collider pushed in the step that gave
+    /// `impulses` (the step's contact impulses, this plugin's among them), in order.
+    fn held_near_bodies<'a>(&'a self, impulses: &'a [Vec3]) -> impl Iterator<Item = u32> + 'a {
+        let own = impulses.get(self.links_from..).unwrap_or(&[]);
+        own.iter()
+            .zip(&self.links)
+            .filter(|(j, link)| {
+                link.body.is_none()
+                    && link.still
+                    && **j != Vec3::ZERO
+                    && self.near_bodies.binary_search(&link.point).is_ok()
+            })
+            .map(|(_, link)| link.point)
+    }
+
     /// The simulation points' sphere radii, in the surface's coordinates.
     pub fn radii(&self) -> &[f32] {
         self.radii.get()

@@ -15,7 +15,7 @@ use super::bodies::RigidSide;
 use super::colliders::{NearCollider, list_colliders};
 use super::surface::{SurfaceFrame, SurfaceView};
 use super::touch::{Touched, touch};
-use super::{ContactDiagnostics, SurfaceContact, SurfaceContacts};
+use super::{ContactDiagnostics, Link, SurfaceContact, SurfaceContacts};
 use crate::core::network::SpringNetwork;
 use crate::core::solver::contact::StepContact;
 use crate::plugin::components::{
@@ -50,6 +50,7 @@ pub fn surface_contacts(
     configuration: Query<&RapierConfiguration, With<DefaultRapierContext>>,
     mut surfaces: Query<ContactSurface>,
     mut diagnostics: ResMut<ContactDiagnostics>,
+    supports: Res<super::BodySupports>,
     mut commands: Commands,
 ) {
     let started = std::time::Instant::now();
@@ -61,7 +62,7 @@ pub fn surface_contacts(
         return;
     }
     let gravity = configuration.single().map_or(Vec3::ZERO, |c| c.gravity);
-    let colliders = list_colliders(&context, dt);
+    let colliders = list_colliders(&context, &supports, dt);
     let mut rigid = RigidSide {
         context,
         bodies: HashMap::new(),
@@ -165,6 +166,7 @@ impl SurfaceContacts {
     fn start_tick(&mut self, network: &std::sync::Arc<SpringNetwork>, radius_scale: f32) {
         self.refresh_radii(network, radius_scale);
         self.links.clear();
+        self.near_bodies.clear();
         self.bodies.clear();
         self.owed.clear();
         self.if_still.clear();
@@ -195,6 +197,7 @@ impl SurfaceContacts {
         self.owed.clone_from(&touched.held.owed);
         self.if_still.clone_from(&touched.held.if_still);
         self.links.clear();
+        self.near_bodies.clone_from(&touched.near_bodies);
         // The game's systems may hand contacts of their own to the step too.
         self.links_from = forces.contacts().len();
         let held = &touched.held;
@@ -228,8 +231,14 @@ impl SurfaceContacts {
                 ..frame.contact_to_local(c)
             };
             // In range by construction; one that is not is left out (and said in the log).
+            let still = c.body.is_none() && c.body_velocity == Vec3::ZERO;
             match forces.add_contact(local) {
-                Ok(()) => self.links.push((link, *at)),
+                Ok(()) => self.links.push(Link {
+                    body: link,
+                    at: *at,
+                    point: c.point,
+                    still,
+                }),
                 Err(e) => warn!("point-springs: a contact left out: {e}"),
             }
         }
@@ -247,7 +256,13 @@ impl SurfaceContacts {
 ///
 /// [`ContactSolve::InStep`]: super::ContactSolve::InStep
 pub(crate) fn record_step_contacts(
-    mut surfaces: Query<(&mut SurfaceStepper, &GlobalTransform, &mut SurfaceContacts)>,
+    mut surfaces: Query<(
+        Entity,
+        &mut SurfaceStepper,
+        &GlobalTransform,
+        &mut SurfaceContacts,
+    )>,
+    supports: Res<super::BodySupports>,
     mut rapier: WriteRapierContext,
     configuration: Query<&RapierConfiguration, With<DefaultRapierContext>>,
     mode: Option<Res<TimestepMode>>,
@@ -259,8 +274,11 @@ pub(crate) fn record_step_contacts(
     };
     let gravity = configuration.single().map_or(Vec3::ZERO, |c| c.gravity);
     let lag = integrator_lag(&context, mode.as_deref(), gravity, time.delta_secs());
-    let mut landed: Vec<RigidBodyHandle> = Vec::new();
-    for (mut stepper, place, mut report) in &mut surfaces {
+    // Bodies resting on points that stand as balls in rapier's scene are rapier's to end
+    // where its solver puts them: never landed (nor moved out, below).
+    let on_balls = supports.bodies_on(&context);
+    let mut landed: Vec<RigidBodyHandle> = on_balls.clone();
+    for (entity, mut stepper, place, mut report) in &mut surfaces {
         let report = report.bypass_change_detection();
         let last = stepper.diagnostics();
         // Whether the surface took the step this tick's contacts went into.
@@ -280,6 +298,7 @@ pub(crate) fn record_step_contacts(
             continue;
         }
         let linear = Mat3::from(place.affine().matrix3);
+        let supported = supports.standing_of(entity);
         let (mut impulse, mut touching) = (Vec3::ZERO, 0);
         // Only the contacts this plugin handed to the step (the game's systems, and
         // surfaces meeting surfaces, hand theirs too).
@@ -291,11 +310,20 @@ pub(crate) fn record_step_contacts(
             let world = linear * *j;
             impulse += world;
             touching += 1;
-            // A dynamic body solved in the step takes the opposite of what the surface took.
+            // A dynamic body solved in the step takes the opposite of what the surface took,
+            // except at a point standing as a ball in rapier's scene since its last step:
+            // there rapier's step holds the body off it (a ball placed this tick has not
+            // held it yet: the step's impulse stops the body as it lands).
             let link = k
                 .checked_sub(report.links_from)
                 .and_then(|k| report.links.get(k).copied());
-            if let Some((Some(handle), at)) = link
+            if let Some(Link {
+                body: Some(handle),
+                at,
+                point,
+                ..
+            }) = link
+                && supported.binary_search(&point).is_err()
                 && world.is_finite()
                 && let Some(body) = context.rigidbody_set.bodies.get_mut(handle)
             {
@@ -303,6 +331,11 @@ pub(crate) fn record_step_contacts(
             }
         }
         for &(index, handle) in &report.bodies {
+            if on_balls.contains(&handle) {
+                // Rapier's step holds it off the points standing as balls and ends it
+                // where its solver puts it: neither moved out here nor landed.
+                continue;
+            }
             let moved = stepper.body_moves().get(index as usize).copied();
             let world = linear * moved.unwrap_or(Vec3::ZERO);
             let Some(body) = context.rigidbody_set.bodies.get_mut(handle) else {

@@ -26,6 +26,8 @@ pub(super) struct Touched {
     pub(super) near: usize,
     /// The impulse on each point that touched.
     pub(super) impulses: Vec<ContactImpulse>,
+    /// The points near a dynamic body, sorted.
+    pub(super) near_bodies: Vec<u32>,
     /// The contacts for the surface's step to solve ([`ContactSolve::InStep`]), in world
     /// coordinates.
     pub(super) held: Held,
@@ -46,6 +48,7 @@ pub(super) fn touch(
     let mut touched = Touched {
         near: near.len(),
         impulses: Vec::new(),
+        near_bodies: Vec::new(),
         held: Held::default(),
     };
     if near.is_empty() {
@@ -53,6 +56,20 @@ pub(super) fn touch(
     }
     let world = surface.world_points(dt);
     let by_body = proximities_by_body(surface, &world, &near, &rigid.context, dt);
+    let bodies = &rigid.context.rigidbody_set.bodies;
+    let is_dynamic = |b: &BodyContacts| {
+        b.body
+            .and_then(|h| bodies.get(h))
+            .is_some_and(|b| b.is_dynamic())
+    };
+    touched.near_bodies = by_body
+        .iter()
+        .filter(|b| is_dynamic(b))
+        .flat_map(|b| b.proximities.iter().map(|p| p.point as u32))
+        .collect();
+    touched.near_bodies.sort_unstable();
+    touched.near_bodies.dedup();
+
     // Built on the first body that several points touch, once for all of this tick's.
     let incidence = std::cell::OnceCell::new();
     let mut reweigh = |proximities: &mut [Proximity], touching: &[bool]| {
