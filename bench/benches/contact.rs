@@ -5,6 +5,9 @@
 //!   on the sphere: `hat on sphere` below), with 12 balls resting on them and on the floor;
 //! * `sheet+50`: a 10 m sheet of 10^4 simulation points, edges held, 50 balls resting on it;
 //! * `sheet+far`: the same sheet with the 50 balls 100 m away (near no surface);
+//! * `crates on cloth`: a 1.2 m cloth (350 simulation points) lying on the floor, three
+//!   1 kg crates dropped on it one above the other and two beside them: the points the
+//!   floor holds under them stand in rapier's step as fixed balls (decision 0034);
 //! * `spheres 100 m apart`: two of the playground's spheres floating 100 m apart, without
 //!   [`SurfaceMeeting`], with it but no self-contact, and with both (what surfaces that
 //!   meet nothing pay for meeting);
@@ -38,7 +41,7 @@ use bevy_point_springs::core::pipeline::SurfaceConfig;
 use bevy_point_springs::core::simplify::SimplifyConfig;
 use bevy_point_springs::core::solver::Integrator;
 use bevy_point_springs::core::solver::{BendingModel, MaterialUnits, SpringMaterial};
-use bevy_point_springs::plugin::SleepSettings;
+use bevy_point_springs::plugin::{BodySupports, SleepSettings};
 use bevy_point_springs::plugin::{
     ContactDiagnostics, ContactSolve, SurfaceMeetingReport, SurfaceStepper,
 };
@@ -78,6 +81,9 @@ fn main() {
         }
         if wanted("sheet+far") {
             sheet(true, solve);
+        }
+        if wanted("crates on cloth") {
+            crates_on_cloth(solve);
         }
     }
     for meet in [Meet::No, Meet::Others, Meet::AndSelf, Meet::Estimated] {
@@ -412,6 +418,47 @@ fn playground(solve: ContactSolve) {
         }
     }
     measure(&mut app, &format!("playground, {name}"), 12);
+}
+
+/// A crate's half side, metres.
+const CRATE_HALF: f32 = 0.1;
+
+/// The `crates on cloth` scene; see the module documentation.
+fn crates_on_cloth(solve: ContactSolve) {
+    let (contact, name) = contact(solve);
+    let mut app = create_app();
+    let side = 1.2;
+    let config = SurfaceConfig {
+        simplify: SimplifyConfig::target(350),
+        ..default()
+    };
+    // Lying flat: the sheet's XY plane turned onto the floor, its points' spheres just off
+    // it (as in `tests/contact_scenes.rs`).
+    let turn = Quat::from_rotation_x(-std::f32::consts::FRAC_PI_2);
+    app.world_mut().spawn((
+        DeformableSurface::cloud(shapes::square_sheet(side, 0.02 * side), config),
+        Transform::from_xyz(0.0, 0.03 * side, 0.0).with_rotation(turn),
+        awake(),
+        contact,
+    ));
+    app.world_mut().spawn((
+        Collider::cuboid(5.0, 0.1, 5.0),
+        Transform::from_xyz(0.0, -0.1, 0.0),
+    ));
+    settle(&mut app);
+    let stack = (0..3).map(|k| Vec3::new(0.05, 0.5 + 0.3 * k as f32, -0.03));
+    let beside = [Vec3::new(-0.35, 0.5, 0.3), Vec3::new(0.35, 0.5, -0.3)];
+    for at in stack.chain(beside) {
+        app.world_mut().spawn((
+            RigidBody::Dynamic,
+            Collider::cuboid(CRATE_HALF, CRATE_HALF, CRATE_HALF),
+            ColliderMassProperties::Mass(1.0),
+            Transform::from_translation(at).with_rotation(Quat::from_rotation_y(0.3)),
+        ));
+    }
+    measure(&mut app, &format!("crates on cloth, {name}"), 5);
+    let balls = app.world().resource::<BodySupports>().len();
+    println!("(crates on cloth, {name}: {balls} points standing as balls in rapier's step)");
 }
 
 /// Settings that never let a surface sleep: the bench times a whole awake tick against the
