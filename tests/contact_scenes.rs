@@ -87,7 +87,16 @@ impl Seen {
 /// the floor, stacked one above the other (a crate's side apart), measured for `seconds`
 /// after the drop; and the cloth's thickness.
 fn crates_on_cloth(masses: &[f32], seconds: usize) -> (Scene, f32) {
+    crates_on_cloth_solved(masses, seconds, DEFAULT_SOLVER_ITERATIONS)
+}
+
+/// rapier's default `num_solver_iterations`.
+const DEFAULT_SOLVER_ITERATIONS: usize = 4;
+
+/// As `crates_on_cloth`, with rapier's solver at `iterations`.
+fn crates_on_cloth_solved(masses: &[f32], seconds: usize, iterations: usize) -> (Scene, f32) {
     let mut scene = Scene::new();
+    scene.solver_iterations(iterations);
     let cloth = scene.cloth(1.2, 350);
     scene.run(HZ);
     let thickness = 2.0 * scene.mean_radius(cloth);
@@ -147,12 +156,7 @@ fn three_crates_stacked_on_a_cloth_stay_stacked() {
     seen.print("three crates stacked on a cloth");
     seen.assert_no_energy_gained("three crates stacked on a cloth");
     let last = scene.ticks.last().unwrap();
-    let fastest = |t: &scenes::Tick| t.crate_speed.iter().copied().fold(t.point_speed, f32::max);
-    let rested = scene
-        .ticks
-        .iter()
-        .rposition(|t| fastest(t) >= 0.01)
-        .map_or(0, |k| k + 1);
+    let rested = rested_from(&scene);
     println!(
         "the crates' heights at the end: {:.3?}; below 1 cm/s from {:.2} s",
         last.crate_height,
@@ -188,6 +192,36 @@ fn three_crates_stacked_on_a_cloth_stay_stacked() {
         (fell - (FLOOR_TOP + 0.5 * CRATE_SIDE)).abs() < 0.01,
         "the lowest crate at {fell}"
     );
+}
+
+/// The first tick after which every crate and point stays below 1 cm/s.
+fn rested_from(scene: &Scene) -> usize {
+    let fastest = |t: &scenes::Tick| t.crate_speed.iter().copied().fold(t.point_speed, f32::max);
+    scene
+        .ticks
+        .iter()
+        .rposition(|t| fastest(t) >= 0.01)
+        .map_or(0, |k| k + 1)
+}
+
+#[test]
+fn three_crates_stacked_on_a_cloth_rest_within_2_s_at_8_solver_iterations() {
+    // The stack above rocks on the balls under the lowest crate until 3.4 s after the drop:
+    // rapier's default 4 iterations meet 14 ball contacts under it. Measured 2026-12-07:
+    // at 8 iterations (what the README advises for stacks) below 1 cm/s from 0.93 s, at 16
+    // from 0.65 s, the heights as at 4.
+    let (scene, thickness) = crates_on_cloth_solved(&[1.0, 1.0, 1.0], 3, 8);
+    let seen = Seen::of(&scene);
+    seen.print("three crates stacked on a cloth, 8 solver iterations");
+    seen.assert_no_energy_gained("three crates stacked on a cloth, 8 solver iterations");
+    let rested = rested_from(&scene);
+    println!("below 1 cm/s from {:.2} s", rested as f32 / HZ as f32);
+    assert!(rested <= 2 * HZ, "at rest only from tick {rested}");
+    let last = scene.ticks.last().unwrap();
+    for k in 0..3 {
+        let expected = FLOOR_TOP + thickness + (k as f32 + 0.5) * CRATE_SIDE;
+        assert!((last.crate_height[k] - expected).abs() < 0.02, "crate {k}");
+    }
 }
 
 /// A 1 kg crate dropped, its bottom `height` above `2·radius` over the floor and `x` to the

@@ -95,6 +95,17 @@ impl Scene {
         }
     }
 
+    /// Sets rapier's solver iterations (`IntegrationParameters::num_solver_iterations`,
+    /// 4 by default).
+    pub fn solver_iterations(&mut self, iterations: usize) {
+        let world = self.app.world_mut();
+        let mut simulation = world
+            .query::<&mut RapierContextSimulation>()
+            .single_mut(world)
+            .unwrap();
+        simulation.integration_parameters.num_solver_iterations = iterations;
+    }
+
     /// A square cloth of `side` metres at `simulation` points (the default material),
     /// meeting itself, lying flat (its cloud's XY plane turned onto the floor) with its
     /// points' spheres just off the floor; ready when this returns.
