@@ -12,7 +12,7 @@ mod rapier_app;
 #[path = "support/contact_scenes.rs"]
 mod scenes;
 
-use bevy_point_springs::plugin::BodySupports;
+use bevy_point_springs::plugin::{BodySupports, ContactSolve, SurfaceContact};
 use scenes::{CRATE_SIDE, FLOOR_TOP, Scene};
 
 /// Ticks a second.
@@ -353,4 +353,40 @@ fn a_ball_of_gas_resting_on_another_on_the_floor() {
         "crept {}",
         before.distance(after)
     );
+}
+
+#[test]
+#[ignore = "fails today: estimated contacts do not hold a cloth lying on the floor (issue 64, item 3)"]
+fn a_cloth_lying_on_the_floor_with_estimated_contacts_keeps_still() {
+    // `ContactSolve::Estimated` gives each point an impulse before the step, as heavy as
+    // its step mass with the springs to neighbours that do not touch. A point next to one
+    // hovering a few millimetres up counts those springs and is pushed up far harder than
+    // it pressed down. Measured 2026-12-07, 1 s after the switch from the default: points
+    // at 0.17 m/s and 0.51 J before it, then up to 10 m/s and 5 to 78 J (friction and
+    // overlap recovery off changed nothing). Each point as heavy as its own mass instead
+    // held the cloth still (0.40 J), but a crate dropped on it then pressed it through the
+    // floor: a point between a body and the floor is estimated against each in turn.
+    let mut scene = Scene::new();
+    let cloth = scene.cloth(1.2, 350);
+    scene
+        .app
+        .world_mut()
+        .entity_mut(cloth)
+        .insert(SurfaceContact {
+            solve: ContactSolve::Estimated,
+            ..default()
+        });
+    scene.ticks.clear();
+    scene.run(3 * HZ);
+    let start = scene.ticks[0].energy;
+    let most = scene.ticks.iter().map(|t| t.energy).fold(start, f64::max);
+    let late = scene.fastest_after(2 * HZ).0;
+    println!(
+        "a cloth on the floor, estimated: energy {start:.3} J, at most {most:.3} J; points after 2 s {late:.4} m/s"
+    );
+    assert!(
+        most <= start * 1.01,
+        "the energy rose from {start} to {most} J"
+    );
+    assert!(late < 0.01, "points at {late} m/s after 2 s");
 }

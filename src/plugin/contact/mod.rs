@@ -177,7 +177,9 @@ pub enum ContactSolve {
     #[default]
     InStep,
     /// An impulse before the step, estimated from each point's step mass: a patch pushed as
-    /// a whole is pushed too far or too little, and a ball resting on a surface jitters.
+    /// a whole is pushed too far or too little, a ball resting on a surface jitters, and a
+    /// cloth lying on a floor flaps and gains energy (a point beside one hovering above the
+    /// floor is estimated as heavy as its springs to it make it, and pushed up too hard).
     Estimated,
 }
 
