@@ -162,16 +162,7 @@ fn three_crates_stacked_on_a_cloth_stay_stacked() {
         last.crate_height,
         rested as f32 / HZ as f32
     );
-    // Each on the one below: a crate's side apart, the lowest on the cloth (and the balls'
-    // slop, rapier's allowed error, under it).
-    for k in 0..3 {
-        let expected = FLOOR_TOP + thickness + (k as f32 + 0.5) * CRATE_SIDE;
-        assert!(
-            (last.crate_height[k] - expected).abs() < 0.02,
-            "crate {k} at {} instead of {expected}",
-            last.crate_height[k]
-        );
-    }
+    assert_stacked(last, thickness);
     assert!(
         seen.lowest_corner > 0.85 * thickness,
         "{} of {thickness}",
@@ -192,6 +183,19 @@ fn three_crates_stacked_on_a_cloth_stay_stacked() {
         (fell - (FLOOR_TOP + 0.5 * CRATE_SIDE)).abs() < 0.01,
         "the lowest crate at {fell}"
     );
+}
+
+/// Each crate on the one below (a crate's side apart), the lowest on the cloth of
+/// `thickness` (and the balls' slop, rapier's allowed error, under it): within 2 cm.
+fn assert_stacked(last: &scenes::Tick, thickness: f32) {
+    for k in 0..3 {
+        let expected = FLOOR_TOP + thickness + (k as f32 + 0.5) * CRATE_SIDE;
+        assert!(
+            (last.crate_height[k] - expected).abs() < 0.02,
+            "crate {k} at {} instead of {expected}",
+            last.crate_height[k]
+        );
+    }
 }
 
 /// The first tick after which every crate and point stays below 1 cm/s.
@@ -217,11 +221,7 @@ fn three_crates_stacked_on_a_cloth_rest_within_2_s_at_8_solver_iterations() {
     let rested = rested_from(&scene);
     println!("below 1 cm/s from {:.2} s", rested as f32 / HZ as f32);
     assert!(rested <= 2 * HZ, "at rest only from tick {rested}");
-    let last = scene.ticks.last().unwrap();
-    for k in 0..3 {
-        let expected = FLOOR_TOP + thickness + (k as f32 + 0.5) * CRATE_SIDE;
-        assert!((last.crate_height[k] - expected).abs() < 0.02, "crate {k}");
-    }
+    assert_stacked(scene.ticks.last().unwrap(), thickness);
 }
 
 /// A 1 kg crate dropped, its bottom `height` above `2·radius` over the floor and `x` to the
@@ -305,7 +305,7 @@ fn a_crate_dropped_on_a_scanned_ball_of_gas_comes_to_rest() {
 }
 
 /// The centre of `surface`'s simulation points, world coordinates.
-fn centre(scene: &mut Scene, surface: Entity) -> Vec3 {
+fn centre(scene: &Scene, surface: Entity) -> Vec3 {
     use bevy_point_springs::plugin::SimulationPoints;
     let world = scene.app.world();
     let points = world.get::<SimulationPoints>(surface).unwrap();
@@ -330,9 +330,9 @@ fn a_ball_of_gas_resting_on_another_on_the_floor() {
     let upper = scene.gas_ball(0.05, 0.04 + 2.0 * radius, radius);
     scene.ticks.clear();
     scene.run(5 * HZ);
-    let before = centre(&mut scene, upper);
+    let before = centre(&scene, upper);
     scene.run(HZ);
-    let after = centre(&mut scene, upper);
+    let after = centre(&scene, upper);
     let energy: Vec<f64> = scene.ticks.iter().step_by(HZ).map(|t| t.energy).collect();
     let (points_late, _) = scene.fastest_after(5 * HZ);
     let (points_ever, _) = scene.fastest_after(0);
@@ -345,7 +345,7 @@ fn a_ball_of_gas_resting_on_another_on_the_floor() {
         scene.energy_rise(0),
         (2.0 * scenes::G * (0.04 + 2.0 * radius)).sqrt(),
         1000.0 * before.distance(after),
-        centre(&mut scene, lower)
+        centre(&scene, lower)
     );
     assert!(scene.energy_rise(0) <= 0.01 * scene.ticks[0].energy);
     assert!(

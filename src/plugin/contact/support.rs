@@ -25,6 +25,7 @@ use bevy_rapier3d::rapier::geometry::{
     ColliderBuilder, ColliderHandle, InteractionGroups, SharedShape,
 };
 
+use super::surface::uniform_scale;
 use super::{SurfaceContact, SurfaceContacts};
 use crate::plugin::components::{SimulationPoints, SurfaceStatus, SurfaceStepper};
 
@@ -218,10 +219,7 @@ fn surface_balls(
         return None;
     }
     let groups = groups.map_or(InteractionGroups::all(), |g| (*g).into());
-    let scale = Mat3::from(place.affine().matrix3)
-        .determinant()
-        .abs()
-        .cbrt();
+    let scale = uniform_scale(Mat3::from(place.affine().matrix3));
     let ball = |i: u32| {
         let radius = report.radii().get(i as usize)? * scale + slop;
         let at = ((i as usize) < points.len())

@@ -27,7 +27,7 @@ impl SurfaceFrame {
     pub(super) fn new(place: &GlobalTransform, gravity: Vec3, dt: f32) -> Self {
         let place = place.affine();
         let linear = Mat3::from(place.matrix3);
-        let scale = linear.determinant().abs().cbrt();
+        let scale = uniform_scale(linear);
         Self {
             place,
             to_local: linear.inverse(),
@@ -36,6 +36,12 @@ impl SurfaceFrame {
             scale,
         }
     }
+}
+
+/// How much a frame of linear part `linear` scales lengths (the cube root of its volume
+/// change): the points' radii in the world.
+pub(super) fn uniform_scale(linear: Mat3) -> f32 {
+    linear.determinant().abs().cbrt()
 }
 
 /// How far from a turn and a uniform scale a frame may be and still count as one (a share
