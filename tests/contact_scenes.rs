@@ -277,30 +277,52 @@ fn a_crate_pinched_between_a_ball_of_gas_and_the_floor_is_not_launched() {
     }
 }
 
-/// A crate of 1 kg dropped from `height` above the top of CGAL's scanned sphere (radius
-/// 0.5, filled with gas) lying on the floor.
-fn crate_on_scan(height: f32, seconds: usize) -> Seen {
-    let radius = 0.5;
-    let scene = crate_on_ball(
-        |scene| scene.scan_ball(0.02, radius),
-        (radius, 0.0, height),
-        seconds,
-    );
-    let seen = Seen::of(&scene);
-    seen.print(&format!(
-        "a crate dropped on a scanned ball from {height} m"
-    ));
-    seen
-}
-
 #[test]
-#[ignore = "fails today: a crate sunk in a soft ball spins up and rolls off (issue 64, item 2)"]
+#[ignore = "fails today: a crate on a firm ball slides off it (issue 64, item 4: static friction)"]
 fn a_crate_dropped_on_a_scanned_ball_of_gas_comes_to_rest() {
-    // Measured 2026-12-07: the crate sinks 0.3 m into the ball, turns ever faster (7 rad/s
-    // after 3 s) as the step's rounds solve its spin with the surface, and falls off; the
-    // ball moves at 1.8 m/s after 3 s. Energy never rose.
-    let seen = crate_on_scan(0.5, 10);
-    seen.assert_no_energy_gained("a crate on a scanned ball");
+    // On the default material (`Scene::scan_ball`) the ball is a trampoline, and the crate
+    // cannot rest on it: it dents the top 0.43 m, is thrown back up at about 0.6 of its
+    // landing speed, and tips over. A 0.2 m cube on a soft bed of modulus k (pressure per
+    // sink) tips when k·a⁴/12 < m·g·h (a its side, h its centre's height): k below about
+    // 7400 N/m³ for this crate, and the default ball's is about 1600 (a 0.16 m sink under
+    // 250 Pa, measured 2026-12-08 with its damping raised so that it stops bouncing). This
+    // ball is firm and damped enough to hold the crate up, and the crate still slides off:
+    // friction comes after the surface's solve and moves the point alone, so the body takes
+    // only the point's own mass times its slide, not what the springs behind it resist
+    // (see decision 0035).
+    let radius = 0.5;
+    let firm = bevy_point_springs::core::solver::SpringMaterial {
+        stretch_stiffness: 5000.0,
+        stretch_damping: 10.0,
+        ..default()
+    };
+    let mut scene = Scene::new();
+    let ball = scene.scan_ball_with(0.02, radius, firm, 4000.0);
+    if let Ok(r) = std::env::var("REC") {
+        scene.app.world_mut().entity_mut(ball).insert(bevy_point_springs::plugin::SurfaceContact {
+            depth_recovery: r.parse().unwrap(),
+            ..default()
+        });
+    }
+    scene.run(2 * HZ);
+    let top = scene.top_near(ball, (0.0, 0.0), 0.5 * CRATE_SIDE);
+    let at = Vec3::new(0.0, top + 0.1 + 0.5 * CRATE_SIDE, 0.0);
+    let crate_ = scene.drop_crate(at, Quat::IDENTITY, 1.0);
+    scene.ticks.clear();
+    let mut path = Vec::new();
+    for _ in 0..10 {
+        scene.run(HZ / 2);
+        path.push(scene.app.world().get::<Transform>(crate_.entity).unwrap().translation);
+    }
+    let seen = Seen::of(&scene);
+    let energy: Vec<f64> = scene.ticks.iter().step_by(HZ / 4).map(|t| t.energy).collect();
+    println!("energy every 0.25 s {energy:.2?}");
+    seen.print("a crate dropped 0.1 m on a firm scanned ball");
+    println!(
+        "the ball's top {top:.4} m; the crate's middle every 0.5 s: {:.3?}",
+        path.iter().map(|p| [p.x, p.y, p.z]).collect::<Vec<_>>()
+    );
+    seen.assert_no_energy_gained("a crate on a firm scanned ball");
     assert!(seen.crate_late < 0.01 && seen.points_late < 0.01);
 }
 

@@ -162,9 +162,21 @@ impl Scene {
     /// 10) scaled to `radius`, filled with gas, at the default material, 300 simulation
     /// points, meeting itself, its bottom `bottom` above the floor; ready when this returns.
     pub fn scan_ball(&mut self, bottom: f32, radius: f32) -> Entity {
+        self.scan_ball_with(bottom, radius, SpringMaterial::default(), 1000.0)
+    }
+
+    /// As [`Scene::scan_ball`], of `material` and gas of stiffness `pressure` (Pa).
+    pub fn scan_ball_with(
+        &mut self,
+        bottom: f32,
+        radius: f32,
+        material: SpringMaterial,
+        pressure: f32,
+    ) -> Entity {
         let config = SurfaceConfig {
             simplify: SimplifyConfig::target(300),
-            pressure: Some(1000.0),
+            material,
+            pressure: Some(pressure),
             ..default()
         };
         self.ball(
@@ -173,6 +185,19 @@ impl Scene {
             config,
             Vec3::new(0.0, FLOOR_TOP + bottom + radius, 0.0),
         )
+    }
+
+    /// The height of the highest simulation point of `surface` within `half` of the
+    /// vertical through `(x, z)`, world coordinates.
+    pub fn top_near(&self, surface: Entity, (x, z): (f32, f32), half: f32) -> f32 {
+        let world = self.app.world();
+        let points = world.get::<SimulationPoints>(surface).unwrap();
+        let place = world.get::<GlobalTransform>(surface).unwrap();
+        (0..points.len())
+            .map(|i| place.transform_point(points.position(i)))
+            .filter(|p| (p.x - x).abs() < half && (p.z - z).abs() < half)
+            .map(|p| p.y)
+            .fold(f32::NEG_INFINITY, f32::max)
     }
 
     /// A ball from `assets/{file}` scaled by `scale`, meeting itself, its middle at `at`;
@@ -406,6 +431,9 @@ fn surface_state(app: &mut App, surface: Entity) -> SurfaceState {
                 let m = f64::from(masses.mass(i));
                 energy += 0.5 * m * f64::from(v.length_squared())
                     + m * f64::from(G) * f64::from(at.y - FLOOR_TOP);
+            }
+            if std::env::var("DBG").is_ok() {
+                eprintln!("E spring {:.3} bend {:.3} anchor {:.3} gas {:.3} total {:.3}", own.spring, own.bending, own.anchor, own.pressure, energy);
             }
             SurfaceState {
                 energy,

@@ -204,7 +204,7 @@ pub(crate) struct Scratch {
     touched: Vec<bool>,
     /// How the surface's pushes changed with each moving body's velocity in the last step,
     /// by the body's key ([`StepBody::key`]).
-    resisted: Vec<(u64, (DMat3, DMat3))>,
+    resisted: Vec<(u64, contacts::Resist)>,
     /// Each pinch's push at the end of the last step (a moving body on a point something
     /// immovable holds), by the body's key and the point: the next step's first guess.
     pinched: Vec<(u64, u32, (f64, DVec3))>,

@@ -8,10 +8,10 @@
 //! one tick late, and the loop's gain, W·C (the body's inverse mass times the carried
 //! points' step masses), passes 2 (a 1 kg body under a 1 kg sheet did, at 60 Hz).
 
-use glam::{DMat3, DVec3, Vec3};
+use glam::{DVec3, Vec3};
 
-use super::contacts::{BODY_SPEED_SLACK, Secant, broyden};
-use super::{Scratch, point_inertia};
+use super::Scratch;
+use super::contacts::{BODY_SPEED_SLACK, Resist, Secant};
 use crate::core::solver::contact::{CarriedPoint, StepBody};
 use crate::core::solver::{Masses, PointState};
 
@@ -68,7 +68,7 @@ impl<'a> Carried<'a> {
     pub(super) fn step(&mut self, s: &Scratch, held: &[Vec3], points: &mut PointState) -> bool {
         let count = self.bodies.len();
         let mut impulse = vec![(DVec3::ZERO, DVec3::ZERO); count];
-        let mut resist = vec![(DMat3::ZERO, DMat3::ZERO); count];
+        let mut resist = vec![Resist::default(); count];
         for c in self.carried {
             let (i, b) = (c.point as usize, c.body as usize);
             let Some(j) = held.get(i).filter(|_| b < count) else {
@@ -80,12 +80,11 @@ impl<'a> Carried<'a> {
             // The point's step mass, as a first guess of how much the surface resists it
             // (more than it does: its neighbours among the carried points move with it).
             let mass = s.diag.get(i).map_or(0.0, |d| d.trace() / 3.0);
-            resist[b].0 += DMat3::from_diagonal(DVec3::splat(mass));
-            resist[b].1 += point_inertia(mass, arm);
+            resist[b].add_carried(arm, mass);
         }
         let mut moved = vec![None; count];
         for b in 0..count {
-            if impulse[b] == (DVec3::ZERO, DVec3::ZERO) && resist[b] == (DMat3::ZERO, DMat3::ZERO) {
+            if impulse[b] == (DVec3::ZERO, DVec3::ZERO) && resist[b].is_empty() {
                 continue;
             }
             let body = &self.bodies[b];
@@ -101,17 +100,9 @@ impl<'a> Carried<'a> {
             }
             let resist = match self.secant[b] {
                 None => resist[b],
-                Some(last) => (
-                    broyden(
-                        last.resist.0,
-                        shift_linear - last.shift.0,
-                        impulse[b].0 - last.impulse.0,
-                    ),
-                    broyden(
-                        last.resist.1,
-                        shift_angular - last.shift.1,
-                        impulse[b].1 - last.impulse.1,
-                    ),
+                Some(last) => last.resist.broyden(
+                    (shift_linear - last.shift.0, shift_angular - last.shift.1),
+                    (impulse[b].0 - last.impulse.0, impulse[b].1 - last.impulse.1),
                 ),
             };
             self.secant[b] = Some(Secant {
@@ -119,10 +110,9 @@ impl<'a> Carried<'a> {
                 shift: self.shift[b],
                 impulse: impulse[b],
             });
-            let step_linear = -((DMat3::IDENTITY + inv_mass * resist.0).inverse() * miss_linear);
-            let step_angular =
-                -((DMat3::IDENTITY + inv_inertia * resist.1).inverse() * miss_angular);
-            if step_linear.is_finite() && step_angular.is_finite() {
+            if let Some((step_linear, step_angular)) =
+                resist.step((inv_mass, inv_inertia), (miss_linear, miss_angular))
+            {
                 self.shift[b] = (shift_linear + step_linear, shift_angular + step_angular);
                 moved[b] = Some((step_linear, step_angular));
             }

@@ -2,14 +2,17 @@
 //! solve with an active set, and the rounds that solve a moving body's velocity with the
 //! surface's (see `docs/ARCHITECTURE.md`, "Contacts solved in the step").
 
-use glam::{DMat3, DVec3, Vec3};
+use glam::{DVec3, Vec3};
 
-use super::{CgOutcome, ExternalForces, PointState, Scratch, System, iterate, outer};
+use super::{CgOutcome, ExternalForces, PointState, Scratch, System, iterate};
 use crate::core::solver::contact::{StepBody, StepContact, step};
 use crate::core::solver::stepper::StepParts;
 use crate::core::solver::{Masses, SolverConfig};
 
+mod coupled;
 mod pinch;
+
+pub(super) use coupled::{Pair, Resist};
 
 /// Most solves one step makes to settle which contacts hold their points (a contact that
 /// would pull its point is let go; a point let go that passes its body is held again).
@@ -82,19 +85,9 @@ pub(super) struct Contacts<'a> {
 /// with the body's velocity, as estimated so far, and the velocity and pushes of the round.
 #[derive(Debug, Clone, Copy)]
 pub(super) struct Secant {
-    pub(super) resist: (DMat3, DMat3),
-    pub(super) shift: (DVec3, DVec3),
-    pub(super) impulse: (DVec3, DVec3),
-}
-
-/// Broyden's update of `c` (how y changes with x) from a step `dx` that changed y by `dy`.
-pub(super) fn broyden(c: DMat3, dx: DVec3, dy: DVec3) -> DMat3 {
-    let length = dx.length_squared();
-    if length > 0.0 && length.is_finite() {
-        c + outer(dy - c * dx, dx) / length
-    } else {
-        c
-    }
+    pub(super) resist: Resist,
+    pub(super) shift: Pair,
+    pub(super) impulse: Pair,
 }
 
 /// A second filter axis beside unit `n` for the unit normal `m`: their cosine c, the unit
@@ -385,23 +378,24 @@ impl<'a> Contacts<'a> {
 
     /// One quasi-Newton step of each moving body towards the velocity the surface's pushes
     /// give it ([`StepBody`]); returns whether any moved. The pushes J on the surface change
-    /// with the body's velocity V as J(V) = J₀ + C·V while the same contacts hold (the step
-    /// is linear), and the body's own velocity is V = V₀ − W·J(V): the step solves
-    /// (I + W·C)·δ = −(V − V₀ + W·J). C starts as the held points' step masses along their
-    /// normals (more than the surface resists: the rounds fall short rather than overshoot)
-    /// and each later round corrects it by Broyden's update from the change it saw, which
-    /// along one direction of push is exact.
+    /// with the body's velocity V (linear and angular, a 6-vector) as J(V) = J₀ + C·V while
+    /// the same contacts hold (the step is linear), and the body's own velocity is
+    /// V = V₀ − W·J(V): the step solves (I + W·C)·δ = −(V − V₀ + W·J). C ([`Resist`])
+    /// starts as the held points' step masses along their normals, a turn's part and a
+    /// shift's coupled (more than the surface resists: the rounds fall short rather than
+    /// overshoot), and each later round corrects it by Broyden's update from the change it
+    /// saw, which along one direction of push is exact.
     fn move_bodies(&mut self, s: &Scratch) -> bool {
         if self.bodies.is_empty() {
             return false;
         }
         let count = self.bodies.len();
         // Per body: the pushes' linear and angular impulse, and the held points' masses
-        // along their normals, as linear and angular 3×3 sums; and the pinches' impulse
-        // apart (set by `pinch`, not a function of the body's velocity here).
+        // along their normals; and the pinches' impulse apart (set by `pinch`, not a
+        // function of the body's velocity here).
         let mut impulse = vec![(DVec3::ZERO, DVec3::ZERO); count];
         let mut pinched = vec![(DVec3::ZERO, DVec3::ZERO); count];
-        let mut resist = vec![(DMat3::ZERO, DMat3::ZERO); count];
+        let mut resist = vec![Resist::default(); count];
         for k in 0..self.kept.len() {
             let c = &self.contacts[self.kept[k]];
             let Some(b) = c.body.map(|b| b as usize).filter(|&b| b < count) else {
@@ -421,11 +415,7 @@ impl<'a> Contacts<'a> {
             let j = n * self.push[k];
             impulse[b].0 += j;
             impulse[b].1 += arm.cross(j);
-            let d = &s.diag[i];
-            let mass = n.dot(d.mul(n));
-            let turn = arm.cross(n);
-            resist[b].0 += outer(n, n) * mass;
-            resist[b].1 += outer(turn, turn) * mass;
+            resist[b].add(n, arm, n.dot(s.diag[i].mul(n)));
         }
         let mut moved = false;
         for b in 0..count {
@@ -442,7 +432,7 @@ impl<'a> Contacts<'a> {
             }
             // C = dJ/dV, from the last round's change where there was one (none where only
             // pinches touch the body: `pinch` holds it).
-            let regular = resist[b] != (DMat3::ZERO, DMat3::ZERO);
+            let regular = !resist[b].is_empty();
             let resist = match self.secant[b] {
                 _ if !regular => resist[b],
                 // The body's resistance found last step, where it has one.
@@ -451,17 +441,9 @@ impl<'a> Contacts<'a> {
                     .iter()
                     .find(|(key, _)| *key == body.key)
                     .map_or(resist[b], |(_, r)| *r),
-                Some(last) => (
-                    broyden(
-                        last.resist.0,
-                        shift_linear - last.shift.0,
-                        impulse[b].0 - last.impulse.0,
-                    ),
-                    broyden(
-                        last.resist.1,
-                        shift_angular - last.shift.1,
-                        impulse[b].1 - last.impulse.1,
-                    ),
+                Some(last) => last.resist.broyden(
+                    (shift_linear - last.shift.0, shift_angular - last.shift.1),
+                    (impulse[b].0 - last.impulse.0, impulse[b].1 - last.impulse.1),
                 ),
             };
             self.secant[b] = Some(Secant {
@@ -469,10 +451,9 @@ impl<'a> Contacts<'a> {
                 shift: self.shift[b],
                 impulse: impulse[b],
             });
-            let step_linear = -((DMat3::IDENTITY + inv_mass * resist.0).inverse() * miss_linear);
-            let step_angular =
-                -((DMat3::IDENTITY + inv_inertia * resist.1).inverse() * miss_angular);
-            if step_linear.is_finite() && step_angular.is_finite() {
+            if let Some((step_linear, step_angular)) =
+                resist.step((inv_mass, inv_inertia), (miss_linear, miss_angular))
+            {
                 self.shift[b] = (shift_linear + step_linear, shift_angular + step_angular);
                 // Only a body the solve holds points to needs the surface solved again (a
                 // body held off pinches alone moves no point).
