@@ -278,18 +278,18 @@ fn a_crate_pinched_between_a_ball_of_gas_and_the_floor_is_not_launched() {
 }
 
 #[test]
-#[ignore = "fails today: a crate on a firm ball slides off it (issue 64, item 4: static friction)"]
+#[ignore = "fails today: its landing gains energy, and the crate slides off (issue 64, items 3, 4)"]
 fn a_crate_dropped_on_a_scanned_ball_of_gas_comes_to_rest() {
-    // On the default material (`Scene::scan_ball`) the ball is a trampoline, and the crate
-    // cannot rest on it: it dents the top 0.43 m, is thrown back up at about 0.6 of its
-    // landing speed, and tips over. A 0.2 m cube on a soft bed of modulus k (pressure per
-    // sink) tips when k·a⁴/12 < m·g·h (a its side, h its centre's height): k below about
-    // 7400 N/m³ for this crate, and the default ball's is about 1600 (a 0.16 m sink under
-    // 250 Pa, measured 2026-12-08 with its damping raised so that it stops bouncing). This
-    // ball is firm and damped enough to hold the crate up, and the crate still slides off:
-    // friction comes after the surface's solve and moves the point alone, so the body takes
-    // only the point's own mass times its slide, not what the springs behind it resist
-    // (see decision 0035).
+    // On the default material the ball is a trampoline, and a crate cannot rest on it: it
+    // dents the top 0.43 m, is thrown back up at about 0.6 of its landing speed, and tips
+    // over. A 0.2 m cube on a soft bed of modulus k (pressure per sink) tips when
+    // k·a⁴/12 < m·g·h (a its side, h its centre's height): k below about 7400 N/m³ for this
+    // crate, and the default ball's is about 1600 (a 0.16 m sink under 250 Pa). This ball
+    // is firm and damped enough to hold the crate up. Measured 2026-12-08: the landing
+    // raises the energy from 29.06 J to 35.0 J within 0.25 s (the rounds that solve the
+    // crate's velocity with the ball's end short of agreement), and the crate, dropped
+    // within 2 cm of the top, slides off ever faster: friction comes after the surface's
+    // solve and moves the point alone. See decision 0035.
     let radius = 0.5;
     let firm = bevy_point_springs::core::solver::SpringMaterial {
         stretch_stiffness: 5000.0,
@@ -297,13 +297,7 @@ fn a_crate_dropped_on_a_scanned_ball_of_gas_comes_to_rest() {
         ..default()
     };
     let mut scene = Scene::new();
-    let ball = scene.scan_ball_with(0.02, radius, firm, 4000.0);
-    if let Ok(r) = std::env::var("REC") {
-        scene.app.world_mut().entity_mut(ball).insert(bevy_point_springs::plugin::SurfaceContact {
-            depth_recovery: r.parse().unwrap(),
-            ..default()
-        });
-    }
+    let ball = scene.scan_ball(0.02, radius, firm, 4000.0);
     scene.run(2 * HZ);
     let top = scene.top_near(ball, (0.0, 0.0), 0.5 * CRATE_SIDE);
     let at = Vec3::new(0.0, top + 0.1 + 0.5 * CRATE_SIDE, 0.0);
@@ -312,10 +306,22 @@ fn a_crate_dropped_on_a_scanned_ball_of_gas_comes_to_rest() {
     let mut path = Vec::new();
     for _ in 0..10 {
         scene.run(HZ / 2);
-        path.push(scene.app.world().get::<Transform>(crate_.entity).unwrap().translation);
+        path.push(
+            scene
+                .app
+                .world()
+                .get::<Transform>(crate_.entity)
+                .unwrap()
+                .translation,
+        );
     }
     let seen = Seen::of(&scene);
-    let energy: Vec<f64> = scene.ticks.iter().step_by(HZ / 4).map(|t| t.energy).collect();
+    let energy: Vec<f64> = scene
+        .ticks
+        .iter()
+        .step_by(HZ / 4)
+        .map(|t| t.energy)
+        .collect();
     println!("energy every 0.25 s {energy:.2?}");
     seen.print("a crate dropped 0.1 m on a firm scanned ball");
     println!(

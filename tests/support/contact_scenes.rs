@@ -159,14 +159,10 @@ impl Scene {
     }
 
     /// CGAL's scanned sphere (`assets/sphere926.pwn`: 926 points and their normals, radius
-    /// 10) scaled to `radius`, filled with gas, at the default material, 300 simulation
-    /// points, meeting itself, its bottom `bottom` above the floor; ready when this returns.
-    pub fn scan_ball(&mut self, bottom: f32, radius: f32) -> Entity {
-        self.scan_ball_with(bottom, radius, SpringMaterial::default(), 1000.0)
-    }
-
-    /// As [`Scene::scan_ball`], of `material` and gas of stiffness `pressure` (Pa).
-    pub fn scan_ball_with(
+    /// 10) scaled to `radius`, of `material`, filled with gas of stiffness `pressure` (Pa),
+    /// 300 simulation points, meeting itself, its bottom `bottom` above the floor; ready
+    /// when this returns.
+    pub fn scan_ball(
         &mut self,
         bottom: f32,
         radius: f32,
@@ -431,9 +427,6 @@ fn surface_state(app: &mut App, surface: Entity) -> SurfaceState {
                 let m = f64::from(masses.mass(i));
                 energy += 0.5 * m * f64::from(v.length_squared())
                     + m * f64::from(G) * f64::from(at.y - FLOOR_TOP);
-            }
-            if std::env::var("DBG").is_ok() {
-                eprintln!("E spring {:.3} bend {:.3} anchor {:.3} gas {:.3} total {:.3}", own.spring, own.bending, own.anchor, own.pressure, energy);
             }
             SurfaceState {
                 energy,
