@@ -29,17 +29,18 @@ fn skew(r: DVec3) -> DMat3 {
 pub(in crate::core::solver::implicit) type Pair = (DVec3, DVec3);
 
 /// dJ/dV for one body: how the linear and angular impulse the surface takes (J) change with
-/// the body's linear and angular velocity (V), as four 3×3 blocks of a 6×6 matrix, and the
-/// length (m) that weighs a turn against a shift in Broyden's update (a turn of 1 rad/s
-/// counts as `length` m/s; the contacts' mean arm).
+/// the body's linear and angular velocity (V), as four 3×3 blocks of a 6×6 matrix, and what
+/// weighs a turn against a shift in Broyden's update (a turn of 1 rad/s counts as the
+/// contacts' mean arm in m/s).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(in crate::core::solver::implicit) struct Resist {
     linear_linear: DMat3,
     linear_angular: DMat3,
     angular_linear: DMat3,
     angular_angular: DMat3,
+    /// Σ of the masses added times their squared arms, and Σ of the masses: the mean
+    /// squared arm is their ratio ([`Resist::weight`]).
     length_squared: f64,
-    /// Σ of the masses added, for the mean arm.
     mass: f64,
 }
 
