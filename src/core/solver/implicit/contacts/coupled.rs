@@ -16,7 +16,7 @@ use glam::{DMat3, DVec3};
 
 use super::super::{outer, point_inertia};
 
-/// [r]×: the matrix that takes v to r × v.
+/// `[r]×`: the matrix that takes v to r × v.
 fn skew(r: DVec3) -> DMat3 {
     DMat3::from_cols(
         DVec3::new(0.0, r.z, -r.y),
