@@ -10,6 +10,7 @@ use crate::core::solver::stepper::StepParts;
 use crate::core::solver::{Masses, SolverConfig};
 
 mod coupled;
+mod friction;
 mod pinch;
 
 pub(super) use coupled::{Pair, Resist};
@@ -519,10 +520,11 @@ impl<'a> Contacts<'a> {
         }
     }
 
-    /// Friction on the points the last solve held, and each contact's impulse added to
-    /// `impulses` (one per contact handed in); returns whether any contact held.
+    /// Friction on the points the last solve held (against a moving body, with the body's
+    /// answer: [`Contacts::body_friction`]), and each contact's impulse added to `impulses`
+    /// (one per contact handed in); returns whether any contact held.
     pub(super) fn slide(
-        &self,
+        &mut self,
         s: &mut Scratch,
         points: &PointState,
         impulses: &mut [Vec3],
@@ -554,9 +556,15 @@ impl<'a> Contacts<'a> {
             held = true;
             let c = &self.contacts[self.kept[k]];
             let (i, n, _) = self.get(k);
+            if self.rubs_body(k) {
+                // Its friction is found with the body's answer (below).
+                if let Some(out) = impulses.get_mut(self.kept[k]) {
+                    *out += (n * push).as_vec3();
+                }
+                continue;
+            }
             let mass = s.own[i];
-            let body_velocity = c.body_velocity.as_dvec3() + self.body_shift(c);
-            let relative = points.v.get(i).as_dvec3() + s.dv[i] - body_velocity;
+            let relative = points.v.get(i).as_dvec3() + s.dv[i] - c.body_velocity.as_dvec3();
             let mut slide = step::friction_dv(relative, n, f64::from(c.friction), push / mass);
             // Not into the other contact that holds the point.
             if let Some(j) = self.filtered_with(k) {
@@ -571,6 +579,9 @@ impl<'a> Contacts<'a> {
                 *out += (n * push + slide * mass).as_vec3();
             }
         }
+        let own = std::mem::take(&mut s.own);
+        self.body_friction(s, &own, impulses);
+        s.own = own;
         held
     }
 
