@@ -428,6 +428,12 @@ fn surface_state(app: &mut App, surface: Entity) -> SurfaceState {
                 energy += 0.5 * m * f64::from(v.length_squared())
                     + m * f64::from(G) * f64::from(at.y - FLOOR_TOP);
             }
+            if std::env::var_os("CONTACT_SCENES_TRACE").is_some() {
+                println!(
+                    "  surface spring {:.4} bending {:.4} gas {:.4} anchor {:.4} all {:.4}",
+                    own.spring, own.bending, own.pressure, own.anchor, energy
+                );
+            }
             SurfaceState {
                 energy,
                 fastest,
