@@ -483,8 +483,8 @@ mod tests {
         );
         // Where it touches, the body still slides forward over each point or moves with it
         // (within 2 cm/s: the passes stop short of exact): friction does not turn the slide
-        // round. It did: the body's bottom went back at 0.67 m/s over points going forward
-        // at 0.17 m/s.
+        // round. It did: the body's bottom went back at 0.69 m/s over points going forward
+        // at 0.33 m/s.
         for &i in &UNDER_THE_CRATE {
             let at = linear + angular.cross(solver.position(i) - centre);
             let point = solver.velocity(i);
