@@ -319,32 +319,45 @@ mod tests {
     /// The middle 2 × 2 points of the sheet, under a crate's bottom.
     const UNDER_THE_CRATE: [usize; 4] = [27, 28, 35, 36];
 
-    /// One step of the sheet lying on the ground with a crate of `mass` (a 0.2 m cube, its
-    /// centre 0.1 above the sheet's middle) resting on its middle 2 × 2 points, the crate
-    /// moving at `velocity` at the step's start; returns the crate's velocity after it (the
-    /// opposite of what the surface took, as the plugin gives it).
-    fn crate_on_the_sheet(solver: &mut Solver, mass: f32, velocity: Vec3) -> Vec3 {
-        on_the_ground(solver);
+    /// Adds a 0.2 m cube of `mass` to the step, its centre 0.1 above the sheet's middle
+    /// 2 × 2 points, moving at `velocity` without turning; returns the body's index and its
+    /// centre.
+    fn cube_above_the_middle(
+        solver: &mut Solver,
+        mass: f32,
+        velocity: Vec3,
+        key: u64,
+    ) -> (u32, Vec3) {
         let centre: Vec3 = UNDER_THE_CRATE
             .iter()
             .map(|&i| solver.position(i))
             .sum::<Vec3>()
             / 4.0
             + Vec3::Y * 0.1;
-        let free = velocity + Vec3::new(0.0, -9.81, 0.0) * DT;
         let inertia = mass * 0.2 * 0.2 / 6.0;
         let body = solver
             .external
             .add_body(StepBody {
-                linear: free,
+                linear: velocity,
                 angular: Vec3::ZERO,
-                guess_linear: free,
+                guess_linear: velocity,
                 guess_angular: Vec3::ZERO,
                 inv_mass: glam::Mat3::IDENTITY / mass,
                 inv_inertia: glam::Mat3::IDENTITY / inertia,
-                key: 7,
+                key,
             })
             .unwrap();
+        (body, centre)
+    }
+
+    /// One step of the sheet lying on the ground with a crate of `mass` (a 0.2 m cube, its
+    /// centre 0.1 above the sheet's middle) resting on its middle 2 × 2 points, the crate
+    /// moving at `velocity` at the step's start; returns the crate's velocity after it (the
+    /// opposite of what the surface took, as the plugin gives it).
+    fn crate_on_the_sheet(solver: &mut Solver, mass: f32, velocity: Vec3) -> Vec3 {
+        on_the_ground(solver);
+        let free = velocity + Vec3::new(0.0, -9.81, 0.0) * DT;
+        let (body, centre) = cube_above_the_middle(solver, mass, free, 7);
         let first = solver.external.contacts().len();
         for &i in &UNDER_THE_CRATE {
             let at = solver.position(i) + Vec3::Y * 0.0;
@@ -433,24 +446,7 @@ mod tests {
         let mut solver = sheet(Integrator::ImplicitEuler, false);
         let (mass, inertia) = (0.2, 0.2 * 0.2 * 0.2 / 6.0);
         let velocity = Vec3::new(1.0, -0.5, 0.0);
-        let centre: Vec3 = UNDER_THE_CRATE
-            .iter()
-            .map(|&i| solver.position(i))
-            .sum::<Vec3>()
-            / 4.0
-            + Vec3::Y * 0.1;
-        let body = solver
-            .external
-            .add_body(StepBody {
-                linear: velocity,
-                angular: Vec3::ZERO,
-                guess_linear: velocity,
-                guess_angular: Vec3::ZERO,
-                inv_mass: glam::Mat3::IDENTITY / mass,
-                inv_inertia: glam::Mat3::IDENTITY / inertia,
-                key: 5,
-            })
-            .unwrap();
+        let (body, centre) = cube_above_the_middle(&mut solver, mass, velocity, 5);
         for &i in &UNDER_THE_CRATE {
             let c = StepContact {
                 body: Some(body),

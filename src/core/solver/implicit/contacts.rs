@@ -579,9 +579,7 @@ impl<'a> Contacts<'a> {
                 *out += (n * push + slide * mass).as_vec3();
             }
         }
-        let own = std::mem::take(&mut s.own);
-        self.body_friction(s, &own, impulses);
-        s.own = own;
+        self.body_friction(&mut s.dv, &s.own, impulses);
         held
     }
 

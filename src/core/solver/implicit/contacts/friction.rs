@@ -13,7 +13,6 @@
 
 use glam::{DVec3, Vec3};
 
-use super::super::Scratch;
 use super::Contacts;
 
 /// Gauss–Seidel passes over a body's contacts ([`Contacts::body_friction`]).
@@ -31,10 +30,10 @@ impl Contacts<'_> {
     /// (their pushes along the normals already in `impulses`): Coulomb friction up to μ
     /// times each push, by Gauss–Seidel passes in which an impulse f changes its point's
     /// velocity by f/m (`own`: the point's own mass; the point alone) and the body's by −W·f
-    /// at its arm, so that together they stop the slide and no more. Each point's Δv, each
-    /// body's velocity (its shift) and each contact's impulse in `impulses` take what
+    /// at its arm, so that together they stop the slide and no more. Each point's Δv (`dv`),
+    /// each body's velocity (its shift) and each contact's impulse in `impulses` take what
     /// friction gave.
-    pub(super) fn body_friction(&mut self, s: &mut Scratch, own: &[f64], impulses: &mut [Vec3]) {
+    pub(super) fn body_friction(&mut self, dv: &mut [DVec3], own: &[f64], impulses: &mut [Vec3]) {
         for b in 0..self.bodies.len() {
             let mine: Vec<usize> = (0..self.kept.len())
                 .filter(|&k| {
@@ -63,7 +62,7 @@ impl Contacts<'_> {
                         continue;
                     }
                     let at = c.body_velocity.as_dvec3() + linear + angular.cross(arm);
-                    let relative = self.v0[k] + s.dv[i] - at;
+                    let relative = self.v0[k] + dv[i] - at;
                     let slide = relative - n * n.dot(relative);
                     let speed = slide.length();
                     if speed <= 0.0 {
@@ -86,7 +85,7 @@ impl Contacts<'_> {
                             change -= other * into;
                         }
                     }
-                    s.dv[i] += change / mass;
+                    dv[i] += change / mass;
                     linear -= inv_mass * change;
                     angular -= inv_inertia * arm.cross(change);
                     *f += change;
